@@ -1,0 +1,26 @@
+"""multipole — mechatronic drive systems as Weber multipoles.
+
+Pipeline (one module per stage)::
+
+    netlist.load ─▶ Network ─▶ network.flatten ─▶ causality.analyse ─▶ equations.assemble
+        ─▶ codegen.compile_model ─▶ simulate.simulate ─▶ Result
+
+The public API below is what element libraries and scripts build on.
+"""
+from .catalogue import REQUIRED, ElementType, Param, catalogue, register
+from .causality import Analysis, analyse
+from .diagnostics import CATALOGUE as DIAGNOSTICS, Diagnostic
+from .domains import DOMAINS, Domain
+from .equations import Equations, assemble
+from .errors import IllPosedError, ModelError, MultipoleError, NetlistError
+from .network import FlatNetwork, Network, Quantity, flatten
+from .primitives import C, CField, GY, I, MTF, R, TF, Se, Sf, junction_a, junction_b
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "REQUIRED", "ElementType", "Param", "catalogue", "register", "Analysis", "analyse", "DIAGNOSTICS",
+    "Diagnostic", "DOMAINS", "Domain", "Equations", "assemble", "IllPosedError", "ModelError",
+    "MultipoleError", "NetlistError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
+    "GY", "I", "MTF", "R", "TF", "Se", "Sf", "junction_a", "junction_b",
+]

@@ -1,0 +1,154 @@
+"""The element catalogue: element types by name, with ports, parameters (units) and quantities.
+
+The kernel registers its primitives here (for teaching netlists); element libraries register
+their machine elements through the ``multipole.elements`` entry-point group (the bundled
+``elements`` package does so), so the kernel never imports a machine element by name.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from typing import Callable
+
+
+from .errors import ModelError
+from .primitives import C, GY, I, R, TF, Se, Sf, junction_a, junction_b
+
+REQUIRED = object()
+
+
+@dataclass
+class Param:
+    """A parameter of an element type.
+
+    ``kind``: ``number`` (constant, may use scene parameters), ``time`` (expression of ``t``),
+    ``law`` (expression of the law variable ``law_var`` and ``t``), ``choice`` (one of
+    ``choices``), ``bool``, ``names`` (list of port names), ``numbers`` (list of numbers).
+    """
+
+    name: str
+    unit: str = ""
+    doc: str = ""
+    default: object = REQUIRED
+    kind: str = "number"
+    choices: tuple = ()
+    law_var: str = ""
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+
+@dataclass
+class ElementType:
+    """A buildable element type: ``build(**params)`` returns a Network or a Primitive."""
+
+    name: str
+    build: Callable
+    doc: str
+    ports: dict                       # port name -> description (domain, role)
+    params: list
+    quantities: dict = field(default_factory=dict)   # name -> "unit: meaning"
+    one_of: tuple = ()                # groups of parameters of which exactly one must be given
+    category: str = "element"
+
+    def param(self, name: str) -> Param | None:
+        return next((p for p in self.params if p.name == name), None)
+
+    def describe(self) -> str:
+        lines = [f"{self.name} — {self.doc}", "  ports:"]
+        lines += [f"    {p}: {d}" for p, d in self.ports.items()]
+        lines.append("  parameters:")
+        for p in self.params:
+            default = "required" if p.required else f"default {p.default!r}"
+            extra = f" one of {', '.join(p.choices)}" if p.choices else ""
+            lines.append(f"    {p.name} [{p.unit or '-'}] ({p.kind}, {default}{extra}): {p.doc}")
+        for group in self.one_of:
+            lines.append(f"    (give exactly one of: {', '.join(group)})")
+        if self.quantities:
+            lines.append("  quantities:")
+            lines += [f"    {q}: {d}" for q, d in self.quantities.items()]
+        return "\n".join(lines)
+
+
+_REGISTRY: dict[str, ElementType] = {}
+_LOADED = False
+
+
+def register(etype: ElementType) -> ElementType:
+    """Add an element type to the catalogue (later registrations of a name are refused)."""
+    if etype.name in _REGISTRY and _REGISTRY[etype.name] is not etype:
+        raise ModelError("duplicate_type", f"element type {etype.name!r} is registered twice")
+    _REGISTRY[etype.name] = etype
+    return etype
+
+
+def catalogue() -> dict[str, ElementType]:
+    """All registered element types (loads the ``multipole.elements`` entry points once)."""
+    global _LOADED
+    if not _LOADED:
+        _LOADED = True
+        for ep in entry_points(group="multipole.elements"):
+            ep.load()
+    return dict(_REGISTRY)
+
+
+# -- kernel primitives as netlist types ----------------------------------------------------------
+
+_DOMAIN = Param("domain", "", "energy domain of the ports", "rotational", "choice",
+                ("rotational", "translational", "electrical", "hydraulic"))
+
+
+register(ElementType("Se", lambda value, domain: Se(value, domain), "effort source (primitive)",
+                     {"p": "imposes the effort on its neighbour"},
+                     [Param("value", "effort unit", "effort as a function of t", kind="time"), _DOMAIN],
+                     category="primitive"))
+register(ElementType("Sf", lambda value, domain: Sf(value, domain), "flow source (primitive)",
+                     {"p": "imposes the flow on its neighbour"},
+                     [Param("value", "flow unit", "flow as a function of t", kind="time"), _DOMAIN],
+                     category="primitive"))
+register(ElementType(
+    "TF", lambda ratio, domain_a, domain_b, q0: TF(ratio, domain_a, domain_b, q0),
+    "ideal transformer f_a = k*f_b, e_b = -k*e_a; k may depend on q, the displacement of port b",
+    {"a": "port a (domain_a)", "b": "port b (domain_b); q = ∫ f_b dt"},
+    [Param("ratio", "f_a/f_b", "ratio k, a number or an expression of q", kind="law", law_var="q"),
+     Param("domain_a", "", "domain of port a", "rotational", "choice", _DOMAIN.choices),
+     Param("domain_b", "", "domain of port b", "rotational", "choice", _DOMAIN.choices),
+     Param("q0", "displacement unit of b", "initial displacement of port b", 0.0)],
+    {"q": "displacement unit of b: displacement of port b (modulated ratio only)"}, category="primitive"))
+register(ElementType(
+    "GY", lambda r, domain_a, domain_b: GY(r, domain_a, domain_b), "ideal gyrator e_a = r*f_b, e_b = -r*f_a",
+    {"a": "port a", "b": "port b"},
+    [Param("r", "e_a/f_b", "gyrator modulus"),
+     Param("domain_a", "", "domain of port a", "electrical", "choice", _DOMAIN.choices),
+     Param("domain_b", "", "domain of port b", "rotational", "choice", _DOMAIN.choices)],
+    category="primitive"))
+register(ElementType(
+    "I", lambda J, law, domain, p0: I(J=J, law=law, dom=domain, p0=p0), "inertia one-port: p' = e, f = p/J",
+    {"p": "the port"},
+    [Param("J", "kg*m^2 | kg | H", "inertia (or give law)", None),
+     Param("law", "flow unit", "flow as a function of the momentum p", None, "law", law_var="p"), _DOMAIN,
+     Param("p0", "momentum unit", "initial momentum", 0.0)],
+    {"p": "momentum"}, one_of=(("J", "law"),), category="primitive"))
+register(ElementType(
+    "C", lambda c, law, domain, q0: C(c=c, law=law, dom=domain, q0=q0), "compliance one-port: q' = f, e = c*q",
+    {"p": "the port"},
+    [Param("c", "effort/displacement", "stiffness (or give law)", None),
+     Param("law", "effort unit", "effort as a function of the displacement q", None, "law", law_var="q"),
+     _DOMAIN, Param("q0", "displacement unit", "initial displacement", 0.0)],
+    {"q": "displacement"}, one_of=(("c", "law"),), category="primitive"))
+register(ElementType(
+    "R", lambda r, law, domain: R(r=r, law=law, dom=domain), "resistance one-port: e = r*f or e = law(f)",
+    {"p": "the port"},
+    [Param("r", "effort/flow", "resistance (or give law)", None),
+     Param("law", "effort unit", "effort as a function of the flow f", None, "law", law_var="f"), _DOMAIN],
+    one_of=(("r", "law"),), category="primitive"))
+for _kind, _fn in (("a", junction_a), ("b", junction_b)):
+    register(ElementType(
+        f"junction_{_kind}", (lambda fn: lambda ports, signs, domain: fn(ports, domain, signs))(_fn),
+        "type-a junction: common effort, flows add (0-junction)" if _kind == "a" else
+        "type-b junction: common flow, efforts add (1-junction)",
+        {"<ports>": "the names listed in 'ports'"},
+        [Param("ports", "", "port names", kind="names"),
+         Param("signs", "", "orientation +1/-1 per port", None, "numbers"), _DOMAIN],
+        category="primitive"))

@@ -1,0 +1,631 @@
+"""The causality analyser (DESIGN §7).
+
+Works on the equations of a :class:`~multipole.network.FlatNetwork`:
+
+1. *Aliases.* Node and junction identities (``x = ±y``) merge variables, so a rigid node has one
+   speed and a chain two-port one through-torque.
+2. *Assignment.* Every equation is assigned the variable it computes (a bipartite matching with
+   states and inputs known).  Sources and storage laws take their natural output first, so the
+   result reads like Weber's arrows: integral causality for I and C wherever possible.
+3. *Over-determined parts* (equations left without a variable) are examined numerically at a few
+   sample points.  A part that only constrains storage states is *derivative causality*: the best
+   conditioned states are demoted and the constraint is differentiated (Pantelides), which yields
+   the constrained-state form ``E(x)·x' = F(x, u)`` and so effective inertias and compliances.
+   A part whose equations are redundant without any state is a structural error: two sources on
+   one variable, or a rigid loop (kinematic over-determination with static under-determination);
+   a loop whose kinematic constraints alone force standstill is a locked loop.
+4. What no equation determines is reported as under-determined.
+
+The result is an :class:`Analysis`: the final equations, their assignment, the states that are
+integrated, the demoted ones and the diagnostics.
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+import sympy as sp
+
+from .diagnostics import Diagnostic
+from .network import Equation, FlatNetwork, State, var
+from .primitives import T
+
+_ROLE_RANK = {"storage": 0, "law": 0, "source": 0}
+
+
+def der(sym: sp.Symbol) -> sp.Symbol:
+    """Symbol for the time derivative of ``sym``."""
+    return var(f"der({sym.name})")
+
+
+@dataclass
+class Analysis:
+    """What the analyser found; the input of :func:`multipole.equations.assemble`."""
+
+    flat: FlatNetwork
+    equations: list            # Equation, after alias substitution, incl. state and differentiated ones
+    assignment: dict           # equation index -> the unknown it computes
+    unknowns: list
+    states: list               # integrated State objects (substituted rhs)
+    demoted: list              # State objects put into derivative causality
+    aliases: dict              # port variable -> (representative, sign)
+    diagnostics: list = field(default_factory=list)
+
+    @property
+    def errors(self) -> list:
+        return [d for d in self.diagnostics if d.severity == "error"]
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+    def substitute(self, expr) -> sp.Expr:
+        """Rewrite an expression of port variables in representatives."""
+        m = {v: s * r for v, (r, s) in self.aliases.items() if v != r}
+        return sp.sympify(expr).xreplace(m)
+
+    def computed_by(self, variable: sp.Symbol) -> str:
+        """Owner (primitive path or node) of the equation that computes a port variable."""
+        rep, _ = self.aliases.get(variable, (variable, 1))
+        for i, v in self.assignment.items():
+            if v == rep:
+                return self.equations[i].owner
+        return ""
+
+    def report(self) -> str:
+        lines = [str(d) for d in self.diagnostics]
+        n_err = len(self.errors)
+        lines.append(f"{'well-posed' if n_err == 0 else 'NOT well-posed'}: {n_err} error(s), "
+                     f"{sum(d.severity == 'warning' for d in self.diagnostics)} warning(s), "
+                     f"{len(self.states)} state(s)")
+        return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------
+# aliases
+
+def _alias_pair(expr, port_vars):
+    """``(x, y, s)`` with ``x = s*y`` if ``expr`` is ``a*x + b*y`` with ``a = ±b``, else None."""
+    if not isinstance(expr, sp.Add) or len(expr.args) != 2:
+        return None
+    terms = []
+    for term in expr.args:
+        c, v = term.as_coeff_Mul()
+        if v not in port_vars or not c.is_Number:
+            return None
+        terms.append((c, v))
+    (c1, x), (c2, y) = terms
+    if abs(c1) != abs(c2) or x == y:
+        return None
+    return x, y, int(-c2 / c1)
+
+
+class _UnionFind:
+    def __init__(self, rank):
+        self.parent: dict = {}
+        self.rank = rank
+
+    def find(self, x):
+        sign = 1
+        path = []
+        while x in self.parent:
+            p, s = self.parent[x]
+            path.append((x, sign))
+            sign *= s
+            x = p
+        for node, s_before in path:      # path compression
+            self.parent[node] = (x, sign * s_before)
+        return x, sign
+
+    def union(self, x, y, s):
+        """Record ``x = s*y``; returns None, or the residual sign if the two already merge."""
+        rx, sx = self.find(x)
+        ry, sy = self.find(y)
+        if rx == ry:
+            return sx - s * sy          # 0: redundant identity; else x_root*(sx - s*sy) == 0
+        # x = sx*rx, y = sy*ry, x = s*y  ->  rx = sx*s*sy*ry
+        if self.rank(rx) < self.rank(ry):
+            self.parent[ry] = (rx, sx * s * sy)
+        else:
+            self.parent[rx] = (ry, sx * s * sy)
+        return None
+
+
+def _port_rank(flat: FlatNetwork):
+    order = {"I": 0, "C": 0, "CField": 0, "R": 1, "Se": 2, "Sf": 2, "TF": 3, "MTF": 3, "GY": 3}
+
+    def rank(sym):
+        path = sym.name.rsplit(".", 2)[0]
+        prim = flat.primitives.get(path)
+        return order.get(prim.kind, 4) if prim is not None else 5
+    return rank
+
+
+# ---------------------------------------------------------------------------------------------
+# matching
+
+def _linear_vars(expr, unknown_set) -> set:
+    """Unknowns that appear in ``expr`` only linearly with coefficients free of unknowns."""
+    linear, nonlinear = set(), set()
+    for term in sp.Add.make_args(expr):
+        factors = sp.Mul.make_args(term)
+        hits = [f for f in factors if f.free_symbols & unknown_set]
+        if len(hits) == 1 and hits[0] in unknown_set:
+            linear.add(hits[0])
+        else:
+            for f in hits:
+                nonlinear |= f.free_symbols & unknown_set
+    return linear - nonlinear
+
+
+def _match(adj: list, order: list):
+    """Maximum matching equation -> unknown, greedy in preference order, then augmented (BFS)."""
+    m_eq: dict = {}
+    m_var: dict = {}
+    for i in order:
+        for v in adj[i]:
+            if v not in m_var:
+                m_eq[i], m_var[v] = v, i
+                break
+    for i in order:
+        if i in m_eq:
+            continue
+        parent = {i: None}
+        queue = deque([i])
+        found = None
+        while queue and found is None:
+            j = queue.popleft()
+            for v in adj[j]:
+                k = m_var.get(v)
+                if k is None:
+                    found = (j, v)
+                    break
+                if k not in parent:
+                    parent[k] = (j, v)
+                    queue.append(k)
+        if found is None:
+            continue
+        j, v = found
+        while True:                     # flip the augmenting path back to the root
+            m_eq[j], m_var[v] = v, j
+            if parent[j] is None:
+                break
+            j, v = parent[j]
+    return m_eq, m_var
+
+
+# ---------------------------------------------------------------------------------------------
+
+class _Analyser:
+    def __init__(self, flat: FlatNetwork, samples: int = 12, seed: int = 1):
+        self.flat = flat
+        self.diagnostics: list[Diagnostic] = []
+        self.values = flat.param_values()
+        self.rng = np.random.default_rng(seed)
+        self.n_samples = samples
+
+    # -- set-up ----------------------------------------------------------------------------------
+    def build(self):
+        flat = self.flat
+        port_vars = set(flat.variables())
+        uf = _UnionFind(_port_rank(flat))
+        eqs: list[Equation] = []
+        for eq in flat.equations:
+            pair = _alias_pair(sp.expand(eq.expr), port_vars) if eq.role in ("node", "constraint") else None
+            if pair is None:
+                eqs.append(eq)
+                continue
+            residual = uf.union(*pair)
+            if residual:                # x = -x: the variable is forced to zero
+                eqs.append(Equation(pair[0], eq.owner, eq.role, None, eq.note + " (closes a loop)"))
+        self.aliases = {v: uf.find(v) for v in port_vars}
+        subs = {v: s * r for v, (r, s) in self.aliases.items() if v != r}
+        self.equations = []
+        for eq in eqs:
+            e = eq.expr.xreplace(subs)
+            if e == 0:
+                continue
+            nat = self.aliases.get(eq.natural, (eq.natural, 1))[0] if eq.natural is not None else None
+            self.equations.append(Equation(e, eq.owner, eq.role, nat, eq.note))
+        self.states = [State(s.symbol, s.rhs.xreplace(subs), s.initial, s.storage, s.owner, s.unit)
+                       for s in flat.states]
+        for st in self.states:
+            self.equations.append(Equation(der(st.symbol) - st.rhs, st.owner, "state", der(st.symbol),
+                                           f"d/dt {st.name}"))
+        self.unknowns = list(dict.fromkeys(r for r, _ in self.aliases.values()))
+        self.unknowns += [der(s.symbol) for s in self.states]
+        self.demoted: list[State] = []
+
+    # -- matching ----------------------------------------------------------------------------------
+    def match(self):
+        unknown_set = set(self.unknowns)
+        adj, order_key = [], []
+        for i, eq in enumerate(self.equations):
+            vs = [v for v in eq.expr.free_symbols if v in unknown_set]
+            lin = _linear_vars(eq.expr, unknown_set) if len(vs) > 1 else set(vs)
+            vs.sort(key=lambda v: (v != eq.natural, v not in lin, v.name))
+            adj.append(vs)
+            order_key.append((0 if eq.role == "state" else 1 if eq.natural is not None else 2, i))
+        order = [i for _, i in sorted(order_key)]
+        self.adj = adj
+        self.m_eq, self.m_var = _match(adj, order)
+
+    def over_groups(self):
+        """Connected groups of the over-determined part (Dulmage–Mendelsohn)."""
+        unmatched = [i for i in range(len(self.equations)) if i not in self.m_eq]
+        seen_eq, seen_var = set(), set()
+        queue = deque(unmatched)
+        seen_eq.update(unmatched)
+        while queue:
+            i = queue.popleft()
+            for v in self.adj[i]:
+                if v in seen_var:
+                    continue
+                seen_var.add(v)
+                k = self.m_var.get(v)
+                if k is not None and k not in seen_eq:
+                    seen_eq.add(k)
+                    queue.append(k)
+        g = nx.Graph()
+        for i in seen_eq:
+            g.add_node(("e", i))
+            for v in self.adj[i]:
+                g.add_edge(("e", i), ("v", v))
+        groups = []
+        for comp in nx.connected_components(g):
+            eqs = sorted(i for k, i in comp if k == "e")
+            vs = sorted((v for k, v in comp if k == "v"), key=lambda s: s.name)
+            groups.append((eqs, vs))
+        return groups
+
+    def under_vars(self):
+        unknown_set = set(self.unknowns)
+        rev: dict = {}
+        for i, vs in enumerate(self.adj):
+            for v in vs:
+                rev.setdefault(v, []).append(i)
+        start = [v for v in self.unknowns if v not in self.m_var]
+        seen = set(start)
+        queue = deque(start)
+        while queue:
+            v = queue.popleft()
+            for i in rev.get(v, []):
+                w = self.m_eq.get(i)
+                if w is not None and w not in seen and w in unknown_set:
+                    seen.add(w)
+                    queue.append(w)
+        return start, seen
+
+    # -- numerics on a group ---------------------------------------------------------------------
+    def sample_points(self, symbols):
+        pts = []
+        states = {s.symbol: s for s in self.flat.states}
+        for k in range(self.n_samples):
+            pt = {T: 0.1 * k}
+            for s in symbols:
+                if s in self.values:
+                    pt[s] = self.values[s]
+                elif s in states and not states[s].storage:
+                    q0 = float(sp.sympify(states[s].initial).xreplace(
+                        {p: self.values[p] for p in self.values}))
+                    pt[s] = q0 + 2 * np.pi * k / self.n_samples + 0.1
+                else:
+                    pt[s] = float(self.rng.normal())
+            pts.append({k: sp.Float(v) for k, v in pt.items()})
+        return pts
+
+    def jacobians(self, eq_ids, alg, stvars):
+        exprs = [self.equations[i].expr for i in eq_ids]
+        syms = set().union(*(e.free_symbols for e in exprs)) | set(alg) | set(stvars)
+        d_alg = [[sp.diff(e, v) for v in alg] for e in exprs]
+        d_st = [[sp.diff(e, v) for v in stvars] for e in exprs]
+        out = []
+        for pt in self.sample_points(syms):
+            def num(x):
+                try:
+                    return complex(sp.sympify(x).xreplace(pt).evalf()).real
+                except (TypeError, ValueError):
+                    return np.nan
+            Ja = np.array([[num(x) for x in row] for row in d_alg], dtype=float).reshape(len(exprs), len(alg))
+            Js = np.array([[num(x) for x in row] for row in d_st], dtype=float).reshape(len(exprs), len(stvars))
+            out.append((Ja, Js))
+        return out
+
+    @staticmethod
+    def left_null(J, tol=1e-9):
+        m, n = J.shape
+        if n == 0:
+            return np.eye(m)
+        U, s, _ = np.linalg.svd(J)
+        r = int(np.sum(s > tol * max(s.max(initial=0.0), 1e-300)))
+        return U[:, r:]
+
+    # -- main ------------------------------------------------------------------------------------
+    def run(self):
+        self.build()
+        self.unconnected()
+        for _round in range(4):
+            self.match()
+            groups = self.over_groups()
+            if not groups:
+                break
+            progressed = False
+            for eq_ids, alg in groups:
+                if self.resolve_group(eq_ids, alg):
+                    progressed = True
+            if not progressed:
+                break
+        else:
+            self.match()
+        if not self.errors():
+            missing, _ = self.under_vars()
+            if missing:
+                self.report_under(missing)
+        integrated = [s for s in self.states if s not in self.demoted]
+        self.diagnostics.append(Diagnostic(
+            "degrees_of_freedom",
+            f"{len(integrated)} state(s) integrated: {', '.join(s.name for s in integrated) or 'none'}"
+            + (f"; in derivative causality: {', '.join(s.name for s in self.demoted)}" if self.demoted else "")))
+        return Analysis(self.flat, self.equations, dict(self.m_eq), self.unknowns, integrated,
+                        self.demoted, self.aliases, self.diagnostics)
+
+    def errors(self):
+        return [d for d in self.diagnostics if d.severity == "error"]
+
+    def resolve_group(self, eq_ids, alg) -> bool:
+        """Resolve one over-determined group; True if the system changed (states demoted)."""
+        state_syms = [s.symbol for s in self.states if s not in self.demoted]
+        present = set().union(*(self.equations[i].expr.free_symbols for i in eq_ids))
+        stvars = [s for s in state_syms if s in present]
+        samples = self.jacobians(eq_ids, alg, stvars)
+        Ja, Js = samples[0]
+        N = self.left_null(Ja)
+        if N.shape[1] == 0:
+            return False
+        C = N.T @ Js
+        redundant = self.left_null(C)
+        W = N @ redundant                    # combinations free of unknowns and states
+        rank_c = N.shape[1] - W.shape[1]
+        for col in W.T:
+            support = [eq_ids[k] for k in np.nonzero(np.abs(col) > 1e-8 * np.abs(col).max())[0]]
+            self.report_redundancy(support)
+        if rank_c == 0:
+            return False
+        if W.shape[1] == 0 and self.locked(eq_ids, alg):
+            return False
+        chosen = self.choose_demotions(eq_ids, alg, stvars, samples, rank_c)
+        if self.errors():
+            return False
+        self.demote(eq_ids, chosen)
+        return True
+
+    def locked(self, eq_ids, alg) -> bool:
+        kin = [i for i in eq_ids if self.equations[i].role in ("constraint", "node")
+               and not self.equations[i].expr.has(T)]
+        if len(kin) < 2:
+            return False
+        vs = sorted(set().union(*(self.equations[i].expr.free_symbols for i in kin)) & set(alg),
+                    key=lambda s: s.name)
+        Jk = self.jacobians(kin, vs, [])[0][0]
+        if np.linalg.matrix_rank(Jk, tol=1e-9 * max(np.abs(Jk).max(), 1e-300)) < len(vs):
+            return False
+        path = self.loop_path([self.equations[i].owner for i in kin])
+        self.diagnostics.append(Diagnostic(
+            "locked_loop",
+            "locked loop: the rigid couplings " + ", ".join(sorted({self.flat.element_of(self.equations[i].owner)
+                                                                   for i in kin}))
+            + " impose inconsistent ratios around the loop, so it admits only standstill "
+              "(kinematic over-determination with no consistent motion)",
+            "check the ratios (their product around the loop must be 1) or make one coupling in this loop elastic",
+            elements=sorted({self.flat.element_of(self.equations[i].owner) for i in kin}), path=path))
+        return True
+
+    def choose_demotions(self, eq_ids, alg, stvars, samples, count):
+        """Pick ``count`` states to demote, best conditioned along the expected motion first.
+
+        At each sample point the constraint gradients ``C = Nᵀ·∂F/∂x`` are scaled consistently
+        (the left null basis ``N`` is normalised on fixed reference equations), so a state whose
+        coefficient vanishes somewhere along the motion (a crank at its dead centre) scores low.
+        """
+        prefer = set(self.flat.prefer_state)
+        nulls = [self.left_null(Ja) for Ja, _ in samples]
+        d = min(N.shape[1] for N in nulls)
+        ref = self.reference_rows(nulls, d)
+        mats = []
+        for N, (_Ja, Js) in zip(nulls, samples):
+            N = N[:, :d]
+            try:
+                N = N @ np.linalg.inv(N[ref, :])
+            except np.linalg.LinAlgError:
+                pass
+            mats.append(N.T @ Js)
+        chosen = []
+        available = list(range(len(stvars)))
+        for _ in range(count):
+            best, best_score = None, -np.inf
+            for j in reversed(available):     # ties: keep the earlier state, demote the later one
+                col = np.array([np.linalg.norm(M[:, j]) if M.size else 0.0 for M in mats])
+                score = col.min() / col.max() if col.max() > 0 else -np.inf
+                if stvars[j].name in prefer:
+                    score -= 2.0
+                if score > best_score + 1e-9:
+                    best, best_score = j, score
+            if best is None:
+                break
+            chosen.append(stvars[best])
+            available.remove(best)
+            new = []
+            for M in mats:                  # eliminate the chosen state from the remaining constraints
+                if M.shape[0] == 0:
+                    new.append(M)
+                    continue
+                k = int(np.argmax(np.abs(M[:, best])))
+                piv = M[k] / M[k, best] if M[k, best] != 0 else M[k]
+                rest = np.delete(M - np.outer(M[:, best], piv), k, axis=0)
+                new.append(rest)
+            mats = new
+        return chosen
+
+    @staticmethod
+    def reference_rows(nulls, d):
+        """``d`` equations whose weights in the null combinations never vanish over the samples."""
+        weight = np.min([np.abs(N[:, :d]).max(axis=1) / max(np.abs(N).max(), 1e-300) for N in nulls], axis=0)
+        rows: list = []
+        for _ in range(d):
+            order = [i for i in np.argsort(-weight) if i not in rows]
+            for i in order:
+                trial = rows + [i]
+                if np.linalg.matrix_rank(nulls[0][trial, :d]) == len(trial):
+                    rows = trial
+                    break
+        return rows
+
+    def demote(self, eq_ids, chosen):
+        unknown_set = set(self.unknowns)
+        states = {s.symbol: s for s in self.states}
+        new_unknowns = []
+        for sym in chosen:
+            self.demoted.append(states[sym])
+            new_unknowns.append(sym)
+        all_states = {s.symbol for s in self.states}
+        owners = []
+        for i in eq_ids:
+            eq = self.equations[i]
+            e = eq.expr
+            total = sp.diff(e, T)
+            for v in e.free_symbols:
+                if v in unknown_set:
+                    dv = der(v)
+                    if dv not in unknown_set:
+                        unknown_set.add(dv)
+                        new_unknowns.append(dv)
+                    total += sp.diff(e, v) * dv
+                elif v in all_states:
+                    total += sp.diff(e, v) * der(v)
+                elif v in self.flat.inputs:
+                    total += sp.diff(e, v) * sp.diff(self.flat.inputs[v], T)
+            if total.has(sp.DiracDelta):
+                self.diagnostics.append(Diagnostic(
+                    "input_differentiation",
+                    f"{self.flat.element_of(eq.owner)}: resolving the rigid coupling needs d/dt of its input "
+                    f"{eq.note or eq.expr}, which contains a step or pulse: the effort would be an impulse",
+                    "give the input a finite rise time (ramp or smooth function) or make the coupling elastic",
+                    elements=[self.flat.element_of(eq.owner)]))
+            self.equations.append(Equation(sp.expand(total), eq.owner, "differentiated", None, "d/dt " + eq.note))
+            owners.append(eq.owner)
+        self.unknowns += new_unknowns
+        elements = sorted({self.flat.element_of(o) for o in owners})
+        kinds = {states[s].owner: self.flat.primitives[states[s].owner].kind for s in chosen}
+        what = "an effective inertia" if all(k == "I" for k in kinds.values()) else \
+            "an effective compliance" if all(k in ("C", "CField") for k in kinds.values()) else \
+            "effective storage"
+        self.diagnostics.append(Diagnostic(
+            "derivative_causality",
+            f"storage joined rigidly through {', '.join(elements)}: "
+            f"{', '.join(s.name for s in chosen)} in derivative causality, resolved into {what} "
+            f"(constrained-state form)", elements=elements))
+
+    # -- reports ---------------------------------------------------------------------------------
+    def element_graph(self):
+        """Bipartite graph of top-level elements and the nodes joining them."""
+        g = nx.Graph()
+        for node in self.flat.nodes:
+            if node.origin != "connection":
+                continue
+            for p in node.ports:
+                g.add_edge(("n", node.name), ("el", self.flat.element_of(p)))
+        return g
+
+    def loop_path(self, owners):
+        """The loop through the elements owning ``owners``, as element names (nodes shown by a
+        neighbour outside the loop, e.g. the shaft inertia)."""
+        els = {self.flat.element_of(o) for o in owners}
+        g = self.element_graph()
+        best = []
+        for cyc in nx.cycle_basis(g):
+            members = {n for k, n in cyc if k == "el"}
+            if len(els & members) > len(els & {n for k, n in best if k == "el"}):
+                best = cyc
+        if not best:
+            return sorted(els)
+        loop_elements = {n for k, n in best if k == "el"}
+        names = []
+        for k, n in best:
+            if k == "el":
+                names.append(n)
+                continue
+            outside = sorted({m for kk, m in g.neighbors((k, n)) if m not in loop_elements})
+            names.append(outside[0] if outside else n)
+        start = next((i for i, (k, _) in enumerate(best) if k == "n"), 0)
+        names = names[start:] + names[:start]
+        return names + names[:1]
+
+    def report_redundancy(self, support):
+        eqs = [self.equations[i] for i in support]
+        owners = [e.owner for e in eqs]
+        elements = sorted({self.flat.element_of(o) for o in owners})
+        sources = sorted({self.flat.element_of(e.owner) for e in eqs if e.role == "source"})
+        kinds = {s.name.rsplit(".", 1)[1] for e in eqs for s in e.expr.free_symbols if "." in s.name}
+        flows = "f" in kinds and "e" not in kinds
+        if sources:
+            dom = self.flat.port_domains[next(p for p in self.flat.port_domains
+                                              if self.flat.element_of(p) == sources[0])]
+            word = dom.flow if flows else dom.effort
+            other = dom.effort if flows else dom.flow
+            self.diagnostics.append(Diagnostic(
+                "source_conflict",
+                f"{' and '.join(sources)} both impose the {word} on the same "
+                + ("rigid node" if flows else "massless node")
+                + f" ({' + '.join(elements)}): {'kinematic' if flows else 'static'} over-determination; "
+                f"the {other} there is left undetermined ({'static' if flows else 'kinematic'} under-determination)",
+                "remove one source or put a spring between them" if flows else
+                "put an inertia on that node or drive one side with a speed source instead",
+                elements=elements))
+            return
+        path = self.loop_path(owners)
+        dom = next(iter(self.flat.port_domains.values()))
+        if flows:
+            self.diagnostics.append(Diagnostic(
+                "kinematic_overdetermination",
+                f"kinematic over-determination: the rigid loop through {', '.join(elements)} imposes the same "
+                f"{dom.flow} twice (consistent ratios); static under-determination: nothing decides how the "
+                f"{dom.effort} splits between the parallel paths",
+                "make one coupling in this loop elastic", elements=elements, path=path))
+        else:
+            self.diagnostics.append(Diagnostic(
+                "static_overdetermination",
+                f"static over-determination: the efforts around {', '.join(elements)} are imposed twice; "
+                f"kinematic under-determination: nothing decides the flow",
+                "add a storage element (inertia or compliance) in this loop", elements=elements, path=path))
+
+    def report_under(self, missing):
+        names = sorted(v.name for v in missing)
+        ports = sorted({n.rsplit(".", 1)[0] for n in names if "." in n})
+        electrical = all(self.flat.port_domains.get(p) is not None and self.flat.port_domains[p].name in
+                         ("electrical", "hydraulic") and n.endswith(".e") for n, p in zip(names, [
+                             n.rsplit(".", 1)[0] for n in names]))
+        self.diagnostics.append(Diagnostic(
+            "underdetermined",
+            f"nothing determines {', '.join(names[:6])}{' …' if len(names) > 6 else ''}",
+            "add a ground (reference potential) to the circuit" if electrical else
+            "add a storage element, a source or a ground where these variables live",
+            elements=sorted({self.flat.element_of(p) for p in ports}), ports=ports))
+
+    def unconnected(self):
+        for node in self.flat.nodes:
+            if node.origin != "termination":
+                continue
+            pp = node.ports[0]
+            ext = [k for k, v in self.flat.external_ports.items() if v == pp]
+            if ext:
+                self.diagnostics.append(Diagnostic(
+                    "unconnected_port",
+                    f"{ext[0]} is not connected: {'free end (effort 0)' if node.domain.free_variable == 'e' else 'open (flow 0)'}",
+                    elements=[ext[0].split('.')[0]], ports=ext))
+
+
+def analyse(flat: FlatNetwork) -> Analysis:
+    """Run the causality analysis on a flat network."""
+    return _Analyser(flat).run()

@@ -1,0 +1,333 @@
+"""Code generation: from :class:`~multipole.equations.Equations` to a fast :class:`Model`.
+
+One flat Python function each for the right-hand side ``f(t, x)``, its Jacobian (forward-mode
+differentiation through the evaluation order, so it stays sparse for long chains), the outputs and
+the switching functions.  Parameters are inlined as numbers; intermediate variables are plain
+Python floats; sympy is not on the hot path.  Algebraic loops that are not solved symbolically
+become a numeric linear solve or a Newton iteration (warm-started, iterations counted).
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+
+import numpy as np
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from .equations import Block, Equations
+from .errors import ModelError
+from .primitives import T
+
+
+class NewtonError(ArithmeticError):
+    """Newton's method did not converge in an algebraic loop."""
+
+
+def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, max_iter: int = 60):
+    """Solve ``fun(z) = (F, J)`` for ``F = 0`` from the last solution ``store[k]`` (damped)."""
+    z = np.array(store[k], dtype=float)
+    F, J = fun(z)
+    norm = np.linalg.norm(F)
+    for it in range(1, max_iter + 1):
+        dz = np.linalg.solve(J, F)
+        lam = 1.0
+        while True:
+            z_new = z - lam * dz
+            F_new, J_new = fun(z_new)
+            if np.linalg.norm(F_new) <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
+                break
+            lam *= 0.5
+        z, F, J, norm = z_new, F_new, J_new, np.linalg.norm(F_new)
+        if np.max(np.abs(lam * dz)) <= tol * (1.0 + np.max(np.abs(z))) or norm == 0.0:
+            stats["newton_iterations"] += it
+            stats["newton_solves"] += 1
+            store[k] = z
+            return z
+    raise NewtonError(f"Newton's method did not converge in algebraic loop {k} (|F| = {norm:.3g})")
+
+
+class _Printer(PythonCodePrinter):
+    def __init__(self, names):
+        super().__init__({"fully_qualified_modules": True, "standard": "python3"})
+        self.names = names
+
+    def _print_Symbol(self, s):
+        try:
+            return self.names[s]
+        except KeyError:
+            raise ModelError("codegen", f"no value for symbol {s} in generated code") from None
+
+    def _print_Float(self, x):
+        return repr(float(x))
+
+    def _print_Rational(self, x):
+        return repr(float(x))
+
+    def _print_Heaviside(self, e):
+        a = self._print(e.args[0])
+        at0 = e.args[1] if len(e.args) > 1 else sp.Rational(1, 2)
+        return f"(1.0 if ({a}) > 0 else ({float(at0)!r} if ({a}) == 0 else 0.0))"
+
+    def _print_sign(self, e):
+        a = self._print(e.args[0])
+        return f"math.copysign(1.0, {a}) if ({a}) != 0 else 0.0"
+
+    def _print_Max(self, e):
+        return "max(" + ", ".join(self._print(a) for a in e.args) + ")"
+
+    def _print_Min(self, e):
+        return "min(" + ", ".join(self._print(a) for a in e.args) + ")"
+
+
+def _ident(name: str, taken: set) -> str:
+    base = re.sub(r"\W", "_", name).strip("_") or "v"
+    if base[0].isdigit():
+        base = "v_" + base
+    cand, k = base, 1
+    while cand in taken:
+        k += 1
+        cand = f"{base}_{k}"
+    taken.add(cand)
+    return cand
+
+
+def switching_functions(expr) -> list:
+    """Expressions whose sign change makes ``expr`` switch (steps, max/min, abs, sign, tables)."""
+    out = []
+    for node in sp.preorder_traversal(expr):
+        if isinstance(node, (sp.Heaviside, sp.sign, sp.Abs)):
+            out.append(node.args[0])
+        elif isinstance(node, (sp.Max, sp.Min)) and len(node.args) == 2:
+            out.append(node.args[0] - node.args[1])
+        elif isinstance(node, sp.Piecewise):
+            for _e, c in node.args:
+                if isinstance(c, sp.core.relational.Relational):
+                    out.append(c.lhs - c.rhs)
+    return out
+
+
+class Model:
+    """Compiled model: ``rhs(t, x)``, ``jac(t, x)``, ``outputs(t, x)``, ``switches(t, x)``."""
+
+    def __init__(self, equations: Equations, outputs, source: str, namespace: dict):
+        self.equations = equations
+        self.state_names = equations.state_names
+        self.output_names = list(outputs)
+        self.x0 = np.array(equations.initial_values(), dtype=float)
+        self.source = source
+        self.stats = namespace["_stats"]
+        self.rhs = namespace["rhs"]
+        self.jac = namespace["jac"]
+        self.outputs = namespace["outputs"]
+        self.switches = namespace["switches"]
+        self.n_switches = namespace["N_SWITCHES"]
+        self.switch_text = namespace["SWITCH_TEXT"]
+        self.values = namespace["values"]
+        self.value_names = namespace["VALUE_NAMES"]
+
+    def port_values(self, t: float, x) -> dict:
+        """Value of every port variable ``path.port.e`` / ``.f`` (and states, inputs) at (t, x)."""
+        known = dict(zip(self.value_names, self.values(t, np.asarray(x, dtype=float))))
+        known.update(zip(self.state_names, np.asarray(x, dtype=float).tolist()))
+        out = dict(known)
+        for v, (rep, sign) in self.equations.analysis.aliases.items():
+            if rep.name in known:
+                out[v.name] = sign * known[rep.name]
+        return out
+
+    def reset_stats(self):
+        for k in self.stats:
+            self.stats[k] = 0
+
+
+class _Unit:
+    """One step of the evaluation order: an assignment, or a numeric loop solved as a whole."""
+
+    def __init__(self, kind, variables, exprs, block):
+        self.kind, self.variables, self.exprs, self.block = kind, variables, exprs, block
+        self.deps = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+
+
+def _units(eq: Equations) -> list:
+    units = []
+    for k, b in enumerate(eq.blocks):
+        if b.solution is not None:
+            units += [_Unit("assign", [v], [s], k) for v, s in zip(b.variables, b.solution)]
+        else:
+            extra = list(b.matrix) + list(b.rhs) if b.matrix is not None else []
+            units.append(_Unit(b.kind, list(b.variables), list(b.residuals) + extra, k))
+    return units
+
+
+def _closure(units: list, needed) -> list:
+    """The units needed to compute ``needed``, in evaluation order."""
+    keep, need = [], set(needed)
+    for u in reversed(units):
+        if need & set(u.variables):
+            keep.append(u)
+            need |= u.deps
+    return keep[::-1]
+
+
+class _Writer:
+    """Prints the pieces of the generated module."""
+
+    def __init__(self, eq: Equations):
+        self.eq = eq
+        self.states = [s.symbol for s in eq.states]
+        self.index = {s: i for i, s in enumerate(self.states)}
+        self.pvals = {p: sp.Float(v) for p, v in eq.params.items()}
+        names: dict = {T: "t"}
+        taken = {"t"}
+        for i, s in enumerate(self.states):
+            names[s] = f"x{i}"
+            taken.add(f"x{i}")
+        for u in eq.inputs:
+            names[u] = _ident(u.name, taken)
+        for b in eq.blocks:
+            for v in b.variables:
+                names[v] = _ident(v.name, taken)
+        self.names = names
+        self.printer = _Printer(names)
+        self.units = _units(eq)
+
+    def P(self, e) -> str:
+        return self.printer.doprint(sp.sympify(e).xreplace(self.pvals))
+
+    def prologue(self, units, extra=()) -> list:
+        n = len(self.states)
+        lines = []
+        if n == 1:
+            lines.append("    x0 = float(x[0])")
+        elif n:
+            lines.append(f"    {', '.join(self.names[s] for s in self.states)}, = x.tolist()")
+        used = set(extra).union(*(u.deps for u in units)) if units else set(extra)
+        lines += [f"    {self.names[u]} = {self.P(e)}" for u, e in self.eq.inputs.items() if u in used]
+        for u in units:
+            lines += self.unit_lines(u)
+        return lines
+
+    def unit_lines(self, u: _Unit) -> list:
+        N, P = self.names, self.P
+        zs = u.variables
+        if u.kind == "assign":
+            return [f"    {N[zs[0]]} = {P(u.exprs[0])}"]
+        b = self.eq.blocks[u.block]
+        n = len(zs)
+        lhs = f"    {', '.join(N[z] for z in zs)}, ="
+        if u.kind == "linear":
+            rows = ", ".join("[" + ", ".join(P(b.matrix[i, j]) for j in range(n)) + "]" for i in range(n))
+            return [f"    _A = np.array([{rows}])", f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
+                    f"{lhs} np.linalg.solve(_A, _b).tolist()"]
+        Jz = sp.Matrix(b.residuals).jacobian(zs)
+        rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
+        k = u.block
+        return [f"    def _blk{k}(_z):", f"        {', '.join(N[z] for z in zs)}, = _z.tolist()",
+                f"        return (np.array([{', '.join(P(r) for r in b.residuals)}]), np.array([{rows}]))",
+                f"{lhs} newton(_blk{k}, _guess, {k}, _stats).tolist()"]
+
+    def function(self, name, doc, needed, ret, extra=()) -> list:
+        units = _closure(self.units, needed)
+        return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + self.prologue(units, needed) + \
+            [f"    return {ret}", ""]
+
+    def jacobian(self) -> list:
+        """Forward-mode Jacobian through the evaluation order (sparse in the states)."""
+        units = _closure(self.units, self.eq.derivatives)
+        out = ["def jac(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
+        out += self.prologue(units, self.eq.derivatives)
+        D: dict = {}
+        count = 0
+        for u in units:
+            if u.kind == "assign":
+                D[u.variables[0]] = {}
+                for j, code in self.grad(u.exprs[0], (), D).items():
+                    count += 1
+                    out.append(f"    _d{count} = {code}")
+                    D[u.variables[0]][j] = f"_d{count}"
+                continue
+            b = self.eq.blocks[u.block]
+            zs = u.variables
+            cols: dict = {}
+            for r_i, r in enumerate(b.residuals):
+                for j, code in self.grad(r, zs, D).items():
+                    cols.setdefault(j, {})[r_i] = code
+            for z in zs:
+                D[z] = {}
+            if not cols:
+                continue
+            n, js = len(zs), sorted(cols)
+            Jz = sp.Matrix(b.residuals).jacobian(zs)
+            rows = ", ".join("[" + ", ".join(self.P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
+            out += [f"    _Jz = np.array([{rows}])", f"    _G = np.zeros(({n}, {len(js)}))"]
+            out += [f"    _G[{r_i}, {c}] = {code}" for c, j in enumerate(js) for r_i, code in cols[j].items()]
+            out.append("    _Dz = -np.linalg.solve(_Jz, _G)")
+            for zi, z in enumerate(zs):
+                for c, j in enumerate(js):
+                    count += 1
+                    out.append(f"    _d{count} = _Dz[{zi}, {c}]")
+                    D[z][j] = f"_d{count}"
+        n = len(self.states)
+        out.append(f"    _J = np.zeros(({n}, {n}))")
+        for i, d in enumerate(self.eq.derivatives):
+            out += [f"    _J[{i}, {j}] = {name}" for j, name in D.get(d, {}).items()]
+        return out + ["    return _J", ""]
+
+    def grad(self, expr, exclude, D) -> dict:
+        """{state index: code} of d expr/dx through the symbols of ``expr`` not in ``exclude``."""
+        acc: dict = {}
+        for w in expr.free_symbols - set(exclude):
+            if w in self.index:
+                acc.setdefault(self.index[w], []).append(self.P(sp.diff(expr, w)))
+            elif D.get(w):
+                d = sp.diff(expr, w).xreplace(self.pvals)
+                for j, name in D[w].items():
+                    acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
+                                                 else f"({self.P(d)})*{name}")
+        return {j: " + ".join(t) for j, t in acc.items()}
+
+
+def generate(eq: Equations, outputs=()) -> str:
+    """Python source of the model functions for ``eq``."""
+    w = _Writer(eq)
+    N, P = w.names, w.P
+    src = ["import math", "import numpy as np", "",
+           "_stats = {'rhs_calls': 0, 'jac_calls': 0, 'newton_iterations': 0, 'newton_solves': 0}",
+           f"_guess = {[[0.0] * len(b.variables) for b in eq.blocks]!r}", ""]
+    ders = ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
+    src += w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives,
+                      f"np.array([{ders}])", ["    _stats['rhs_calls'] += 1"])
+    out_exprs = [eq.output(o) for o in outputs]
+    needed = set().union(*(e.free_symbols for e in out_exprs)) if out_exprs else set()
+    src += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed,
+                      f"np.array([{', '.join(P(e) for e in out_exprs)}], dtype=float)")
+    every = list(eq.inputs) + [v for b in eq.blocks for v in b.variables]
+    src += ["VALUE_NAMES = " + repr([v.name for v in every])]
+    src += w.function("values", "Every input and computed variable, in evaluation order.", every,
+                      f"[{', '.join(N[v] for v in every)}]")
+    sw = list(dict.fromkeys(s for u in w.units for e in u.exprs for s in switching_functions(e)
+                            if s.free_symbols))
+    needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
+    src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"]
+    src += w.function("switches", "Switching functions: a sign change is an event.", needed,
+                      f"[{', '.join(P(s) for s in sw)}]")
+    src += w.jacobian()
+    return "\n".join(src) + "\n"
+
+
+_CACHE: dict = {}
+
+
+def compile_model(eq: Equations, outputs=()) -> Model:
+    """Generate, compile (cached by source hash) and wrap the model functions."""
+    source = generate(eq, outputs)
+    key = hashlib.sha256(source.encode()).hexdigest()
+    code = _CACHE.get(key)
+    if code is None:
+        code = compile(source, f"<multipole model {eq.name} {key[:8]}>", "exec")
+        _CACHE[key] = code
+    namespace = {"newton": newton, "math": math, "np": np}
+    exec(code, namespace)   # our own generated source: numbers and sanitised names only
+    return Model(eq, outputs, source, namespace)

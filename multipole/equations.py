@@ -1,0 +1,266 @@
+"""Assembly of the explicit ODE from a causal analysis (DESIGN §8).
+
+The assigned equations are ordered by their dependencies; strongly connected components are
+algebraic loops.  Each :class:`Block` computes some variables from states, inputs and earlier
+blocks:
+
+* ``explicit`` — one equation solved for one variable (symbolically);
+* ``linear`` — a linear loop, solved symbolically when small (the constrained-state form of
+  derivative causality lands here and gives the effective inertia), otherwise kept as ``A·z = b``
+  and solved numerically in the generated code;
+* ``newton`` — a nonlinear loop, solved by Newton's method in the generated code.
+
+:class:`Equations` holds the states, inputs, parameters, blocks and outputs, and prints them as
+text, LaTeX or Python (the generated code), and as Weber-style back-calculation chains.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import networkx as nx
+import sympy as sp
+from sympy.solvers.solveset import NonlinearError
+
+from .causality import Analysis, der
+from .diagnostics import Diagnostic
+from .errors import IllPosedError, ModelError
+from .network import var
+from .primitives import T
+
+#: linear loops up to this size are solved symbolically
+SYMBOLIC_LIMIT = 8
+
+
+@dataclass
+class Block:
+    """Variables computed together, in evaluation order."""
+
+    kind: str                     # explicit | linear | newton
+    variables: list
+    solution: list | None         # symbolic values (explicit, small linear)
+    residuals: list               # the block's equations, expr == 0
+    owners: list
+    notes: list
+    matrix: sp.Matrix | None = None   # numeric linear blocks: A z = b
+    rhs: sp.Matrix | None = None
+
+
+@dataclass
+class Equations:
+    """The explicit ODE ``x' = f(t, x, u)`` with outputs ``y = g(t, x, u)``."""
+
+    name: str
+    states: list                  # State objects (integrated)
+    derivatives: list             # symbol computing d/dt of each state
+    inputs: dict                  # input symbol -> expression of t
+    params: dict                  # parameter symbol -> value (float)
+    blocks: list
+    available: dict               # output name -> expression
+    diagnostics: list = field(default_factory=list)
+    analysis: Analysis | None = None
+
+    # -- look-ups --------------------------------------------------------------------------------
+    @property
+    def state_names(self) -> list[str]:
+        return [s.name for s in self.states]
+
+    def initial_values(self) -> list[float]:
+        vals = {**{k: v for k, v in self.params.items()}}
+        return [float(sp.sympify(s.initial).xreplace(vals)) for s in self.states]
+
+    def output(self, name: str) -> sp.Expr:
+        """Expression of a named output (element quantity, port variable, state, input)."""
+        try:
+            return self.available[name]
+        except KeyError:
+            close = [k for k in self.available if k.split(".")[0] == name.split(".")[0]]
+            raise ModelError("unknown_output", f"unknown output {name!r}",
+                             f"available for this element: {', '.join(sorted(close)[:12]) or 'none'}") from None
+
+    def definitions(self) -> dict:
+        """variable -> symbolic value for every explicitly solved variable."""
+        out = {}
+        for b in self.blocks:
+            if b.solution is not None:
+                out.update(zip(b.variables, b.solution))
+        return out
+
+    def substituted(self, expr, max_ops: int = 400) -> sp.Expr:
+        """``expr`` in states, inputs and parameters only (where every block is symbolic)."""
+        defs = self.definitions()
+        expr = sp.sympify(expr)
+        for b in reversed(self.blocks):
+            if b.solution is None:
+                continue
+            hit = {v: defs[v] for v in b.variables if v in expr.free_symbols}
+            if hit:
+                expr = expr.xreplace(hit)
+        expr = sp.expand(expr) if sp.count_ops(expr) < max_ops else expr
+        return sp.simplify(expr) if sp.count_ops(expr) < max_ops // 4 else expr
+
+    # -- printing ---------------------------------------------------------------------------------
+    def to_text(self, outputs=(), steps: bool = False) -> str:
+        lines = [f"# {self.name}: explicit ODE x' = f(t, x, u), {len(self.states)} state(s)", "", "States:"]
+        for s, x0 in zip(self.states, self.initial_values()):
+            lines.append(f"  {s.name}  [{s.unit}]  initial {x0:g}")
+        if self.inputs:
+            lines += ["", "Inputs:"] + [f"  {u} = {e}" for u, e in self.inputs.items()]
+        lines += ["", "Parameters:"] + [f"  {p} = {v:g}" for p, v in self.params.items()]
+        small = sum(len(b.variables) for b in self.blocks) <= 400
+        if small and all(b.solution is not None for b in self.blocks):
+            lines += ["", "State equations:"]
+            for s, d in zip(self.states, self.derivatives):
+                lines.append(f"  d/dt {s.name} = {self.substituted(d)}")
+            for name in outputs:
+                lines.append(f"  {name} = {self.substituted(self.output(name))}")
+        lines += ["", "Evaluation order (causal assignments):"]
+        for b in self.blocks:
+            if b.kind == "explicit":
+                lines.append(f"  {b.variables[0]} = {b.solution[0]}    [{b.owners[0]}: {b.notes[0]}]")
+            else:
+                how = "solved symbolically" if b.solution is not None else \
+                    "solved numerically (LU)" if b.kind == "linear" else "solved by Newton"
+                lines.append(f"  {b.kind} loop for ({', '.join(map(str, b.variables))}), {how}:")
+                for r, o in zip(b.residuals, b.owners):
+                    lines.append(f"      0 = {r}    [{o}]")
+                if b.solution is not None:
+                    lines += [f"    => {v} = {s}" for v, s in zip(b.variables, b.solution)]
+        if steps:
+            lines += ["", "Back-calculation (Weber's chains):"]
+            targets = list(outputs) + [f"d/dt {s.name}" for s in self.states]
+            for name, expr in zip(targets, [self.output(o) for o in outputs] + list(self.derivatives)):
+                lines += self.chain(name, expr)
+        return "\n".join(lines)
+
+    def chain(self, name, expr) -> list[str]:
+        """One substitution per line from ``expr`` back to states and inputs."""
+        defs = self.definitions()
+        owner = {v: (b.owners[0] if b.kind == "explicit" else "loop") for b in self.blocks for v in b.variables}
+        lines = [f"  {name}", f"    = {expr}"]
+        seen = 0
+        while seen < 200:
+            pending = [v for v in sp.sympify(expr).free_symbols if v in defs]
+            if not pending:
+                break
+            v = max(pending, key=lambda s: self._order(s))
+            expr = sp.sympify(expr).xreplace({v: defs[v]})
+            lines.append(f"    = {expr}    [{v} from {owner.get(v, '?')}]")
+            seen += 1
+        return lines
+
+    def _order(self, sym) -> int:
+        for k, b in enumerate(self.blocks):
+            if sym in b.variables:
+                return k
+        return -1
+
+    def to_latex(self, outputs=()) -> str:
+        rows = []
+        for s, d in zip(self.states, self.derivatives):
+            rows.append(rf"\frac{{d}}{{dt}} {sp.latex(s.symbol)} &= {sp.latex(self.substituted(d))}")
+        for name in outputs:
+            rows.append(rf"\mathrm{{{name}}} &= {sp.latex(self.substituted(self.output(name)))}")
+        return "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
+
+
+# ---------------------------------------------------------------------------------------------
+
+def _solve_single(expr, v):
+    """Solve ``expr == 0`` for ``v``; None if it is not explicitly solvable."""
+    a = sp.diff(expr, v)
+    if v not in a.free_symbols:
+        rest = sp.expand(expr - a * v)
+        if v not in rest.free_symbols and a != 0:
+            return sp.cancel(-rest / a) if sp.count_ops(rest) < 60 else -rest / a
+    return None
+
+
+def _solve_linear(residuals, zs):
+    try:
+        A, b = sp.linear_eq_to_matrix([sp.expand(r) for r in residuals], zs)
+    except NonlinearError:
+        return None, None
+    if any(A[i, j].free_symbols & set(zs) for i in range(A.rows) for j in range(A.cols)):
+        return None, None
+    return A, b
+
+
+def assemble(analysis: Analysis, name: str = "model") -> Equations:
+    """Order and solve the assigned equations; raise :class:`IllPosedError` if not well-posed."""
+    if not analysis.ok:
+        first = analysis.errors[0]
+        raise IllPosedError(first.code, f"the network is not well-posed: {first.message}", first.fix)
+    eqs = analysis.equations
+    assigned = analysis.assignment
+    by_var = {v: i for i, v in assigned.items()}
+    g = nx.DiGraph()
+    g.add_nodes_from(assigned)
+    for i, v in assigned.items():
+        for w in eqs[i].expr.free_symbols:
+            j = by_var.get(w)
+            if j is not None and j != i:
+                g.add_edge(j, i)
+    cond = nx.condensation(g)
+    blocks: list[Block] = []
+    diagnostics: list[Diagnostic] = []
+    for c in nx.topological_sort(cond):
+        members = sorted(cond.nodes[c]["members"])
+        zs = [assigned[i] for i in members]
+        res = [eqs[i].expr for i in members]
+        owners = [eqs[i].owner for i in members]
+        notes = [eqs[i].note for i in members]
+        if len(members) == 1:
+            sol = _solve_single(res[0], zs[0])
+            if sol is not None:
+                blocks.append(Block("explicit", zs, [sol], res, owners, notes))
+                continue
+            blocks.append(Block("newton", zs, None, res, owners, notes))
+            diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res))
+            continue
+        A, b = _solve_linear(res, zs)
+        if A is None:
+            blocks.append(Block("newton", zs, None, res, owners, notes))
+            diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res))
+            continue
+        numeric = A.xreplace(analysis.flat.param_values())
+        if not any(x.free_symbols for x in numeric) and sp.Matrix(numeric).det() == 0:
+            raise IllPosedError("singular_loop", "the algebraic loop for " + ", ".join(map(str, zs))
+                                + " is singular", "check the couplings of " + ", ".join(sorted(set(owners))))
+        derivative = any(eqs[i].role == "differentiated" for i in members)
+        if len(zs) <= SYMBOLIC_LIMIT:
+            sol = A.LUsolve(b)
+            sol = [sp.cancel(sp.together(s)) if sp.count_ops(s) < 300 else s for s in sol]
+            blocks.append(Block("linear", zs, sol, res, owners, notes, A, b))
+        else:
+            blocks.append(Block("linear", zs, None, res, owners, notes, A, b))
+        if not derivative:
+            diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res))
+    states = analysis.states
+    available = _available(analysis)
+    return Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
+                     analysis.flat.param_values(), blocks, available, diagnostics, analysis)
+
+
+def _loop_diag(analysis, owners, zs, kind, res):
+    els = sorted({analysis.flat.element_of(o) for o in owners})
+    how = "solved symbolically" if kind == "linear" else "iterated by Newton's method in the generated code"
+    return Diagnostic("algebraic_loop", f"{kind} algebraic loop through {', '.join(els)} "
+                      f"(unknowns {', '.join(map(str, zs))}): {how}", elements=els)
+
+
+def _available(analysis: Analysis) -> dict:
+    flat = analysis.flat
+    out = {}
+    for pp in flat.port_domains:
+        for k in ("e", "f"):
+            out[f"{pp}.{k}"] = analysis.substitute(var(f"{pp}.{k}"))
+    for ext, pp in flat.external_ports.items():
+        for k in ("e", "f"):
+            out[f"{ext}.{k}"] = analysis.substitute(var(f"{pp}.{k}"))
+    for s in flat.states:
+        out[s.name] = s.symbol
+    for u in flat.inputs:
+        out[u.name] = u
+    for name, (expr, _unit, _doc) in flat.quantities.items():
+        out[name] = analysis.substitute(expr)
+    return out

@@ -1,0 +1,368 @@
+"""Networks: multipoles built from primitives and other networks, and their flattening.
+
+A :class:`Network` has named children (primitives or networks), internal connections, named
+external ports, parameters and documented quantities.  :func:`flatten` turns a root network into
+a :class:`FlatNetwork`: primitive equations in global variables, one node per connection, the
+default termination of every port nobody connected, the states, the parameter table and a
+networkx graph of primitives and nodes.
+
+Global names follow DESIGN §4: port variables ``elem.port.e`` / ``elem.port.f``, states
+``elem.p`` / ``elem.q``, parameters ``elem.J``, quantities ``elem.omega``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Callable
+
+import networkx as nx
+import sympy as sp
+
+from .domains import Domain
+from .errors import ModelError
+from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive, Relation
+
+
+@lru_cache(maxsize=None)
+def var(name: str) -> sp.Symbol:
+    """The global real symbol called ``name`` (port variables, states, parameters)."""
+    return sp.Symbol(name, real=True)
+
+
+@dataclass
+class Quantity:
+    """A documented output of an element: ``build(V)`` returns its expression."""
+
+    build: Callable
+    unit: str = ""
+    doc: str = ""
+
+
+class Network:
+    """A multipole made of children joined by connections, with named external ports.
+
+    ``children``: name -> Primitive or Network.  ``connections``: lists of ``"child.port"``
+    strings; two or more ports per entry form a node of the domain's kind.  ``ports``: external
+    name -> ``"child.port"``.  ``params``: local parameter values (numbers or sympy expressions
+    of outer parameters); primitives refer to them by bare symbols.  ``quantities``: name ->
+    :class:`Quantity`.  ``body``: a child whose names take the network's own path (so the
+    inertia's momentum is ``pinion.p``, not ``pinion.I.p``).
+    """
+
+    def __init__(self, kind: str, children: dict, connections=(), ports=None, params=None,
+                 quantities=None, body: str | None = None, doc: str = "", prefer_state=None):
+        self.kind = kind
+        self.children = dict(children)
+        self.connections = [list(c) for c in connections]
+        self.ports = dict(ports or {})
+        self.params = dict(params or {})
+        self.quantities = dict(quantities or {})
+        self.body = body
+        self.doc = doc
+        self.prefer_state = list(prefer_state or [])
+        for ref in list(self.ports.values()) + [r for c in self.connections for r in c]:
+            child = ref.split(".", 1)[0]
+            if child not in self.children:
+                raise ModelError("unknown_child", f"{kind}: port reference {ref!r} names no child",
+                                 f"children are {', '.join(self.children)}")
+
+    def port_domain(self, name: str) -> Domain:
+        child, port = self.ports[name].split(".", 1)
+        c = self.children[child]
+        return c.ports[port] if isinstance(c, Primitive) else c.port_domain(port)
+
+    def port_names(self) -> list[str]:
+        return list(self.ports)
+
+
+@dataclass
+class Equation:
+    """A residual ``expr == 0`` with its origin, for analysis and for the user's eyes."""
+
+    expr: sp.Expr
+    owner: str
+    role: str
+    natural: object = None
+    note: str = ""
+
+
+@dataclass
+class State:
+    """A state of the flat network: its symbol, derivative expression and initial value."""
+
+    symbol: sp.Symbol
+    rhs: sp.Expr
+    initial: sp.Expr
+    storage: bool
+    owner: str
+    unit: str
+
+    @property
+    def name(self) -> str:
+        return self.symbol.name
+
+
+@dataclass
+class Node:
+    """Ports joined by one connection (or one port left alone: a termination)."""
+
+    ports: list
+    domain: Domain
+    origin: str = "connection"
+
+    @property
+    def name(self) -> str:
+        return "node(" + ", ".join(self.ports) + ")"
+
+
+@dataclass
+class FlatNetwork:
+    """The primitive graph of a network with all equations in global variables."""
+
+    primitives: dict = field(default_factory=dict)      # path -> Primitive
+    port_domains: dict = field(default_factory=dict)    # "path.port" -> Domain
+    equations: list = field(default_factory=list)
+    states: list = field(default_factory=list)
+    nodes: list = field(default_factory=list)
+    params: dict = field(default_factory=dict)          # Symbol -> value expression
+    inputs: dict = field(default_factory=dict)          # Symbol -> expression of t
+    quantities: dict = field(default_factory=dict)      # name -> (expr, unit, doc)
+    elements: dict = field(default_factory=dict)        # element path -> kind
+    external_ports: dict = field(default_factory=dict)  # "elem.port" -> primitive port path
+    prefer_state: list = field(default_factory=list)
+    graph: nx.Graph = field(default_factory=nx.Graph)
+
+    def variables(self) -> list:
+        """All port variables, in a stable order."""
+        out = []
+        for pp in self.port_domains:
+            out += [var(pp + ".e"), var(pp + ".f")]
+        return out
+
+    def param_values(self) -> dict:
+        """Numeric value of every parameter symbol, with parameter expressions resolved."""
+        values: dict = {}
+
+        def value(s):
+            if s not in values:
+                ex = sp.sympify(self.params[s])
+                deps = [d for d in ex.free_symbols if d in self.params]
+                values[s] = float(ex.subs({d: value(d) for d in deps})) if deps or ex.free_symbols == set() \
+                    else float(ex)
+            return values[s]
+
+        for s in self.params:
+            value(s)
+        return values
+
+    def element_of(self, path: str) -> str:
+        """The top-level element a primitive path or port path belongs to."""
+        return path.split(".", 1)[0]
+
+
+class _Scope:
+    def __init__(self, path: str, params: dict, parent: "_Scope | None"):
+        self.path, self.params, self.parent = path, params, parent
+
+    def lookup(self, name: str):
+        scope = self
+        while scope is not None:
+            if name in scope.params:
+                return scope
+            scope = scope.parent
+        return None
+
+
+def _join(prefix: str, name: str) -> str:
+    return f"{prefix}.{name}" if prefix else name
+
+
+class _Flattener:
+    def __init__(self):
+        self.flat = FlatNetwork()
+        self.used: dict[str, str] = {}
+
+    # -- symbols -----------------------------------------------------------------------------
+    def resolve(self, expr, scope: _Scope, where: str, subs=None):
+        """Replace bare symbols by global parameter symbols (declaring them)."""
+        expr = sp.sympify(expr)
+        mapping = dict(subs or {})
+        for s in expr.free_symbols:
+            if s in mapping or s == T:
+                continue
+            if s.name in (LAW_F.name, LAW_Q.name, LAW_P.name) and s not in mapping:
+                raise ModelError("bad_law", f"{where}: variable {s.name!r} is not available here",
+                                 "R laws use f, C laws and modulated ratios use q, I laws use p")
+            owner = scope.lookup(s.name)
+            if owner is None:
+                raise ModelError("unknown_name", f"{where}: unknown parameter {s.name!r}")
+            g = var(_join(owner.path, s.name))
+            if g not in self.flat.params:
+                self.flat.params[g] = None  # placeholder against recursion
+                self.flat.params[g] = self.resolve(owner.params[s.name], owner.parent or owner, where) \
+                    if isinstance(owner.params[s.name], sp.Basic) else owner.params[s.name]
+            mapping[s] = g
+        return expr.xreplace(mapping) if mapping else expr
+
+    # -- walking -------------------------------------------------------------------------------
+    def port_path(self, net: Network, path: str, ref: str) -> str:
+        """Resolve ``child.port`` inside ``net`` (at ``path``) to a primitive port path."""
+        child, port = ref.split(".", 1)
+        c = net.children[child]
+        cpath = path if net.body == child else _join(path, child)
+        if isinstance(c, Primitive):
+            if port not in c.ports:
+                raise ModelError("unknown_port", f"{_join(path, child)} ({c.kind}) has no port {port!r}",
+                                 f"ports are {', '.join(c.ports)}")
+            return f"{cpath}.{port}"
+        if port not in c.ports:
+            raise ModelError("unknown_port", f"{_join(path, child)} ({c.kind}) has no port {port!r}",
+                             f"ports are {', '.join(c.ports)}")
+        return self.port_path(c, cpath, c.ports[port])
+
+    def state_path(self, net: Network, path: str, ref: str) -> str:
+        child, rest = ref.split(".", 1)
+        c = net.children[child]
+        cpath = path if net.body == child else _join(path, child)
+        if isinstance(c, Primitive):
+            return f"{cpath}.{rest}"
+        return self.state_path(c, cpath, rest)
+
+    def walk(self, net: Network, path: str, scope: _Scope | None):
+        scope = _Scope(path, net.params, scope)
+        self.flat.elements[path or "<root>"] = net.kind
+        self.flat.prefer_state += [_join(path, r) for r in net.prefer_state]
+        for name, child in net.children.items():
+            cpath = path if net.body == name else _join(path, name)
+            if isinstance(child, Primitive):
+                self.add_primitive(child, cpath, scope)
+            else:
+                self.walk(child, cpath, scope)
+        for conn in net.connections:
+            pps = [self.port_path(net, path, r) for r in conn]
+            self.add_node(pps, f"{_join(path, '')}connection {conn}")
+        for qname, q in net.quantities.items():
+            V = _NetVars(self, net, path, scope)
+            self.flat.quantities[_join(path, qname)] = (sp.sympify(q.build(V)), q.unit, q.doc)
+
+    def add_primitive(self, prim: Primitive, path: str, scope: _Scope):
+        if path in self.flat.primitives:
+            raise ModelError("duplicate_name", f"two primitives are called {path!r}")
+        self.flat.primitives[path] = prim
+        self.flat.graph.add_node(path, kind=prim.kind)
+        for port, dom in prim.ports.items():
+            self.flat.port_domains[f"{path}.{port}"] = dom
+        V = _PrimVars(self, prim, path, scope)
+        for spec in prim.states():
+            sym = var(f"{path}.{spec.name}")
+            init = self.resolve(spec.initial, scope, f"{path} initial {spec.name}")
+            self.flat.states.append(State(sym, sp.sympify(spec.rhs(V)), init, spec.storage, path, spec.unit))
+        for rel in prim.relations(V):
+            self.flat.equations.append(Equation(sp.sympify(rel.expr), path, rel.role, rel.natural, rel.note))
+
+    def add_node(self, pps: list, where: str):
+        doms = {self.flat.port_domains[p].name for p in pps}
+        if len(doms) > 1:
+            raise ModelError("domain_mismatch", f"{where}: cannot join ports of different domains "
+                             f"({', '.join(f'{p}: {self.flat.port_domains[p].name}' for p in pps)})",
+                             "put a transducer (TF or GY) between them")
+        for p in pps:
+            if p in self.used:
+                raise ModelError("port_used_twice", f"port {p} is used in two connections",
+                                 "list all ports of one node in a single connection entry")
+            self.used[p] = where
+        dom = self.flat.port_domains[pps[0]]
+        node = Node(pps, dom)
+        self.flat.nodes.append(node)
+        self.flat.graph.add_node(node.name, kind="node")
+        for p in pps:
+            self.flat.graph.add_edge(node.name, p.rsplit(".", 1)[0], port=p)
+        common, summed = ("f", "e") if dom.node_kind == "b" else ("e", "f")
+        first = var(f"{pps[0]}.{common}")
+        for p in pps[1:]:
+            self.flat.equations.append(Equation(var(f"{p}.{common}") - first, node.name, "node", None,
+                                                "common " + ("speed" if common == "f" else "effort")))
+        self.flat.equations.append(Equation(sp.Add(*[var(f"{p}.{summed}") for p in pps]), node.name,
+                                            "node", None, "balance at the node"))
+
+    def terminate(self):
+        for pp, dom in self.flat.port_domains.items():
+            if pp in self.used:
+                continue
+            v = var(f"{pp}.{dom.free_variable}")
+            node = Node([pp], dom, origin="termination")
+            self.flat.nodes.append(node)
+            self.flat.equations.append(Equation(v, node.name, "termination", v,
+                                                "free end (effort 0)" if dom.free_variable == "e"
+                                                else "open port (flow 0)"))
+
+
+class _PrimVars:
+    """Variable resolver handed to a primitive: local names -> global symbols."""
+
+    t = T
+
+    def __init__(self, fl: _Flattener, prim: Primitive, path: str, scope: _Scope):
+        self.fl, self.prim, self.path, self.scope = fl, prim, path, scope
+
+    def e(self, port):
+        return var(f"{self.path}.{port}.e")
+
+    def f(self, port):
+        return var(f"{self.path}.{port}.f")
+
+    def x(self, state):
+        return var(f"{self.path}.{state}")
+
+    def expr(self, e, subs=None):
+        return self.fl.resolve(e, self.scope, f"{self.path} ({self.prim.kind})", subs)
+
+    def input(self, value, name="u"):
+        """A named input ``path.u`` whose value is the expression ``value`` of time."""
+        sym = var(f"{self.path}.{name}")
+        self.fl.flat.inputs[sym] = self.expr(value)
+        return sym
+
+    def param(self, name):
+        value = self.prim.params[name]
+        if isinstance(value, sp.Basic) and value.free_symbols:
+            return self.expr(value)
+        g = var(f"{self.path}.{name}")
+        self.fl.flat.params[g] = float(value)
+        return g
+
+
+class _NetVars:
+    """Resolver for network quantities: ``child.port`` / ``child.state`` -> global symbols."""
+
+    t = T
+
+    def __init__(self, fl: _Flattener, net: Network, path: str, scope: _Scope):
+        self.fl, self.net, self.path, self.scope = fl, net, path, scope
+
+    def e(self, ref):
+        return var(self.fl.port_path(self.net, self.path, ref) + ".e")
+
+    def f(self, ref):
+        return var(self.fl.port_path(self.net, self.path, ref) + ".f")
+
+    def x(self, ref):
+        return var(self.fl.state_path(self.net, self.path, ref))
+
+    def param(self, name):
+        return self.fl.resolve(sp.Symbol(name), self.scope, self.path or "<root>")
+
+    def quantity(self, ref):
+        return self.fl.flat.quantities[_join(self.path, ref)][0]
+
+
+def flatten(root: Network) -> FlatNetwork:
+    """Flatten ``root`` (a scene) into its primitive graph and equations."""
+    fl = _Flattener()
+    fl.walk(root, "", None)
+    for name, child in root.children.items():
+        ports = child.ports if isinstance(child, Primitive) else child.ports
+        for port in ports:
+            fl.flat.external_ports[f"{name}.{port}"] = fl.port_path(root, "", f"{name}.{port}")
+    fl.terminate()
+    return fl.flat

@@ -1,0 +1,72 @@
+"""Step responses against their closed forms (expected values from theory)."""
+import numpy as np
+import pytest
+
+from helpers import run
+
+MSD = """
+name: msd
+parameters: {m: 2.0, k: 800.0, d: 8.0, F: 10.0}
+elements:
+  push:   {type: force_source, value: "F*step(t)"}
+  body:   {type: mass, m: m}
+  spring: {type: spring, c: k, domain: translational}
+  damper: {type: damper, d: d, domain: translational}
+  wall:   {type: ground, domain: translational}
+connections:
+  - [push.p, body.a]
+  - [body.b, spring.a, damper.a]
+  - [spring.b, damper.b, wall.p]
+outputs: [body.v, spring.deflection, spring.force]
+simulate: {t_end: 1.0, dt_out: 0.001, rtol: 1.0e-10, atol: 1.0e-13}
+"""
+
+
+def test_mass_spring_damper_step_response():
+    m, k, d, F = 2.0, 800.0, 8.0, 10.0
+    res = run(MSD)
+    t = res.t
+    wn = np.sqrt(k / m)
+    zeta = d / (2 * np.sqrt(k * m))
+    wd = wn * np.sqrt(1 - zeta**2)
+    x = F / k * (1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * t)))
+    v = F / k * wn / np.sqrt(1 - zeta**2) * np.exp(-zeta * wn * t) * np.sin(wd * t)
+    scale_x, scale_v = np.abs(x).max(), np.abs(v).max()
+    assert np.max(np.abs(res["spring.deflection"] - x)) / scale_x <= 1e-6
+    assert np.max(np.abs(res["body.v"] - v)) / scale_v <= 1e-6
+    assert np.allclose(res["spring.force"], k * res["spring.deflection"], rtol=1e-12, atol=0)
+
+
+RLC = """
+name: rlc
+parameters: {V: 12.0, R: 10.0, L: 0.1, C: 1.0e-4}
+elements:
+  supply: {type: voltage_source, value: "V*step(t)"}
+  R1:     {type: resistor, R: R}
+  L1:     {type: inductor, L: L}
+  C1:     {type: capacitor, C: C}
+  gnd:    {type: ground, domain: electrical}
+connections:
+  - [supply.p, R1.a]
+  - [R1.b, L1.a]
+  - [L1.b, C1.a]
+  - [C1.b, supply.n, gnd.p]
+outputs: [C1.v, L1.i, R1.v, supply.i]
+simulate: {t_end: 0.1, dt_out: 1.0e-4, rtol: 1.0e-10, atol: 1.0e-14}
+"""
+
+
+@pytest.mark.parametrize("solver", ["auto", "Radau"])
+def test_series_rlc_step_response(solver):
+    V, R, L, C = 12.0, 10.0, 0.1, 1.0e-4
+    res = run(RLC, solver=solver)
+    t = res.t
+    alpha = R / (2 * L)
+    wd = np.sqrt(1 / (L * C) - alpha**2)
+    vc = V * (1 - np.exp(-alpha * t) * (np.cos(wd * t) + alpha / wd * np.sin(wd * t)))
+    i = V / (L * wd) * np.exp(-alpha * t) * np.sin(wd * t)
+    assert np.max(np.abs(res["C1.v"] - vc)) / V <= 1e-6
+    assert np.max(np.abs(res["L1.i"] - i)) / np.abs(i).max() <= 1e-6
+    # Ohm's law and the source current follow from the same loop current
+    assert np.allclose(res["R1.v"], R * res["L1.i"], rtol=1e-9, atol=1e-12)
+    assert np.allclose(res["supply.i"], res["L1.i"], rtol=1e-9, atol=1e-12)

@@ -14,7 +14,13 @@ from .domains import DOMAINS, Domain
 from .equations import Equations, assemble
 from .errors import IllPosedError, ModelError, MultipoleError, NetlistError
 from .network import FlatNetwork, Network, Quantity, flatten
-from .primitives import C, CField, GY, I, MTF, R, TF, Se, Sf, junction_a, junction_b
+from .primitives import T, LAW_F, LAW_P, LAW_Q
+from .primitives import C, CField, GY, I, MTF, R, TF, Se, Sf, Tap, junction_a, junction_b
+
+from .codegen import Model, compile_model
+from .simulate import Result, simulate
+from .netlist import Scene, load, loads
+from . import pipeline
 
 __version__ = "0.1.0"
 
@@ -22,5 +28,6 @@ __all__ = [
     "REQUIRED", "ElementType", "Param", "catalogue", "register", "Analysis", "analyse", "DIAGNOSTICS",
     "Diagnostic", "DOMAINS", "Domain", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
-    "GY", "I", "MTF", "R", "TF", "Se", "Sf", "junction_a", "junction_b",
+    "GY", "I", "MTF", "R", "TF", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
+    "LAW_Q", "Model", "compile_model", "Result", "simulate", "Scene", "load", "loads", "pipeline",
 ]

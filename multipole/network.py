@@ -46,11 +46,13 @@ class Network:
     name -> ``"child.port"``.  ``params``: local parameter values (numbers or sympy expressions
     of outer parameters); primitives refer to them by bare symbols.  ``quantities``: name ->
     :class:`Quantity`.  ``body``: a child whose names take the network's own path (so the
-    inertia's momentum is ``pinion.p``, not ``pinion.I.p``).
+    inertia's momentum is ``pinion.p``, not ``pinion.I.p``).  ``signals``: name -> ``"child.state"``;
+    laws and ratios of the children may use the name for that state (e.g. the mesh position
+    ``phi`` of a gear stage, integrated by a :class:`~multipole.primitives.Tap`).
     """
 
     def __init__(self, kind: str, children: dict, connections=(), ports=None, params=None,
-                 quantities=None, body: str | None = None, doc: str = "", prefer_state=None):
+                 quantities=None, body: str | None = None, doc: str = "", prefer_state=None, signals=None):
         self.kind = kind
         self.children = dict(children)
         self.connections = [list(c) for c in connections]
@@ -60,6 +62,7 @@ class Network:
         self.body = body
         self.doc = doc
         self.prefer_state = list(prefer_state or [])
+        self.signals = dict(signals or {})
         for ref in list(self.ports.values()) + [r for c in self.connections for r in c]:
             child = ref.split(".", 1)[0]
             if child not in self.children:
@@ -161,13 +164,14 @@ class FlatNetwork:
 
 
 class _Scope:
-    def __init__(self, path: str, params: dict, parent: "_Scope | None"):
+    def __init__(self, path: str, params: dict, parent: "_Scope | None", signals=None):
         self.path, self.params, self.parent = path, params, parent
+        self.signals = dict(signals or {})
 
     def lookup(self, name: str):
         scope = self
         while scope is not None:
-            if name in scope.params:
+            if name in scope.params or name in scope.signals:
                 return scope
             scope = scope.parent
         return None
@@ -187,8 +191,15 @@ class _Flattener:
         """Replace bare symbols by global parameter symbols (declaring them)."""
         expr = sp.sympify(expr)
         mapping = dict(subs or {})
+        by_name = {k.name: v for k, v in mapping.items()}
         for s in expr.free_symbols:
             if s in mapping or s == T:
+                continue
+            if s.name in by_name:          # the same law variable without assumptions
+                mapping[s] = by_name[s.name]
+                continue
+            if s.name == T.name:
+                mapping[s] = T
                 continue
             if s.name in (LAW_F.name, LAW_Q.name, LAW_P.name) and s not in mapping:
                 raise ModelError("bad_law", f"{where}: variable {s.name!r} is not available here",
@@ -196,6 +207,9 @@ class _Flattener:
             owner = scope.lookup(s.name)
             if owner is None:
                 raise ModelError("unknown_name", f"{where}: unknown parameter {s.name!r}")
+            if s.name in owner.signals:
+                mapping[s] = owner.signals[s.name]
+                continue
             g = var(_join(owner.path, s.name))
             if g not in self.flat.params:
                 self.flat.params[g] = None  # placeholder against recursion
@@ -229,7 +243,8 @@ class _Flattener:
         return self.state_path(c, cpath, rest)
 
     def walk(self, net: Network, path: str, scope: _Scope | None):
-        scope = _Scope(path, net.params, scope)
+        signals = {name: var(self.state_path(net, path, ref)) for name, ref in net.signals.items()}
+        scope = _Scope(path, net.params, scope, signals)
         self.flat.elements[path or "<root>"] = net.kind
         self.flat.prefer_state += [_join(path, r) for r in net.prefer_state]
         for name, child in net.children.items():

@@ -161,6 +161,8 @@ class MTF(Primitive):
     def __init__(self, matrix, domains_a, domains_b, q0=None):
         K = sp.Matrix(matrix)
         n, m = K.shape
+        qs = {q.name: q for q in q_symbols(m)}
+        K = K.xreplace({s: qs[s.name] for s in K.free_symbols if s.name in qs})
         if len(domains_a) != n or len(domains_b) != m:
             raise ModelError("bad_shape", f"MTF matrix is {n}x{m} but has {len(domains_a)} a-ports "
                              f"and {len(domains_b)} b-ports", "give one domain per matrix row/column")
@@ -310,6 +312,26 @@ class R(Primitive):
         f = V.f("p")
         out = V.param("r") * f if self.params["law"] is None else V.expr(self.params["law"], {LAW_F: f})
         return [Relation(V.e("p") - out, "law", V.e("p"), "effort from flow")]
+
+
+class Tap(Primitive):
+    """Displacement tap: a port that takes no effort (``e = 0``) and integrates its flow into ``q``.
+
+    Put on a junction it measures an angle or a travel for laws elsewhere in the element
+    (a mesh stiffness that varies with the mesh position, a contact point moving along the line of
+    action) without changing the dynamics.
+    """
+
+    kind = "Tap"
+
+    def __init__(self, dom="rotational", q0=0.0):
+        super().__init__({"p": dom}, {"q0": _sym(q0)})
+
+    def states(self):
+        return [StateSpec("q", lambda V: V.f("p"), self.params["q0"], False, self.ports["p"].displacement_unit)]
+
+    def relations(self, V):
+        return [Relation(V.e("p"), "constraint", V.e("p"), "a tap takes no effort")]
 
 
 class CField(Primitive):

@@ -3,4 +3,4 @@
 Importing this package registers its element types in the kernel's catalogue
 (``multipole.catalogue``); it uses only the kernel's public API.
 """
-from . import basic  # noqa: F401  (registers the basic elements)
+from . import basic, gears, motor, piezo, planetary  # noqa: F401  (each registers its elements)

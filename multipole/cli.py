@@ -72,7 +72,7 @@ def cmd_simulate(args) -> int:
             print("  " + str(d).replace("\n", "\n  "), file=sys.stderr)
         return 1
     result = pipeline.run(scene, args.t_end, args.dt_out, args.solver, args.rtol, args.atol,
-                          progress=False if args.quiet else None)
+                          progress=False if args.quiet else None, backend=args.backend)
     print(f"{scene.name}: {result.summary()}")
     if args.out:
         result.to_csv(args.out)
@@ -102,6 +102,14 @@ def cmd_elements(args) -> int:
     return 0
 
 
+def _lazy(module: str, name: str):
+    """A command implemented in ``multipole.<module>``, imported when it runs."""
+    def run(args):
+        import importlib
+        return getattr(importlib.import_module(f"multipole.{module}"), name)(args)
+    return run
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="multipole", description="Weber multipole simulator for drive systems")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -126,8 +134,25 @@ def main(argv=None) -> int:
     p.add_argument("--atol", type=float)
     p.add_argument("--out", help="results CSV")
     p.add_argument("--plot", help="figure (png, svg, pdf)")
+    p.add_argument("--backend", help="numpy (default) or a compiled backend, see docs/performance.md")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_simulate)
+    p = sub.add_parser("diagram", help="Weber-style block diagram with the causality found by the check")
+    p.add_argument("file")
+    p.add_argument("-o", "--output", required=True, help="figure.png or figure.svg")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE")
+    p.set_defaults(func=_lazy("diagram", "cmd_diagram"))
+    p = sub.add_parser("linearize", help="linear state-space model (python-control), eigenfrequencies, Bode plot")
+    p.add_argument("file")
+    p.add_argument("--bode", help="figure for the Bode plot")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE")
+    p.set_defaults(func=_lazy("linearize", "cmd_linearize"))
+    p = sub.add_parser("bench", help="speed against error: work-precision reports")
+    p.add_argument("files", nargs="*")
+    p.add_argument("-o", "--output", default="bench_out", help="report directory")
+    p.add_argument("--quick", action="store_true", help="fewer tolerances and repeats")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_lazy("bench", "cmd_bench"))
     p = sub.add_parser("elements", help="the element catalogue")
     p.add_argument("type", nargs="?")
     p.set_defaults(func=cmd_elements)

@@ -54,8 +54,12 @@ def model(scene: Scene, outputs=None) -> Model:
 
 
 def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None, progress=None,
-        outputs=None) -> Result:
-    """Simulate with the scene's ``simulate`` options, overridden by the arguments given."""
+        outputs=None, backend=None) -> Result:
+    """Simulate with the scene's ``simulate`` options, overridden by the arguments given.
+
+    ``backend`` (default: the scene's ``simulate.backend``, else ``numpy``) selects how the model
+    runs; see :mod:`multipole.backends`.
+    """
     opts = dict(scene.simulate)
     for key, value in (("t_end", t_end), ("dt_out", dt_out), ("solver", solver), ("rtol", rtol), ("atol", atol)):
         if value is not None:
@@ -63,6 +67,13 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
     if "t_end" not in opts:
         raise NetlistError("no_t_end", "no simulation time given", "add simulate: {t_end: ...} or use --t-end",
                            scene.path)
+    backend = backend or opts.get("backend", "numpy")
+    if backend != "numpy":
+        from .backends import get_backend
+        outs = list(outputs) if outputs is not None else (scene.outputs or equations(scene).state_names)
+        return get_backend(backend)(equations(scene), outs, opts["t_end"], opts.get("dt_out"),
+                                    opts.get("solver", "auto"), opts.get("rtol", 1e-6), opts.get("atol", 1e-9),
+                                    opts.get("max_step", float("inf")), progress)
     m = model(scene, outputs)
     return simulate(m, opts["t_end"], opts.get("dt_out"), opts.get("solver", "auto"), opts.get("rtol", 1e-6),
                     opts.get("atol", 1e-9), opts.get("max_step", float("inf")), progress=progress)

@@ -52,6 +52,7 @@ class Analysis:
     demoted: list              # State objects put into derivative causality
     aliases: dict              # port variable -> (representative, sign)
     diagnostics: list = field(default_factory=list)
+    _alias_map: dict | None = field(default=None, repr=False)
 
     @property
     def errors(self) -> list:
@@ -63,8 +64,9 @@ class Analysis:
 
     def substitute(self, expr) -> sp.Expr:
         """Rewrite an expression of port variables in representatives."""
-        m = {v: s * r for v, (r, s) in self.aliases.items() if v != r}
-        return sp.sympify(expr).xreplace(m)
+        if self._alias_map is None:
+            self._alias_map = {v: s * r for v, (r, s) in self.aliases.items() if v != r}
+        return sp.sympify(expr).xreplace(self._alias_map)
 
     def computed_by(self, variable: sp.Symbol) -> str:
         """Owner (primitive path or node) of the equation that computes a port variable."""
@@ -213,7 +215,7 @@ class _Analyser:
         uf = _UnionFind(_port_rank(flat))
         eqs: list[Equation] = []
         for eq in flat.equations:
-            pair = _alias_pair(sp.expand(eq.expr), port_vars) if eq.role in ("node", "constraint") else None
+            pair = _alias_pair(eq.expr, port_vars) if eq.role in ("node", "constraint") else None
             if pair is None:
                 eqs.append(eq)
                 continue

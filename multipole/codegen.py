@@ -16,7 +16,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .equations import Block, Equations
+from .equations import Equations, linear_coefficient
 from .errors import ModelError
 from .primitives import T
 
@@ -280,13 +280,18 @@ class _Writer:
         acc: dict = {}
         for w in expr.free_symbols - set(exclude):
             if w in self.index:
-                acc.setdefault(self.index[w], []).append(self.P(sp.diff(expr, w)))
+                acc.setdefault(self.index[w], []).append(self.P(_diff(expr, w)))
             elif D.get(w):
-                d = sp.diff(expr, w).xreplace(self.pvals)
+                d = _diff(expr, w).xreplace(self.pvals)
                 for j, name in D[w].items():
                     acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
                                                  else f"({self.P(d)})*{name}")
         return {j: " + ".join(t) for j, t in acc.items()}
+
+
+def _diff(expr, w):
+    split = linear_coefficient(expr, w)
+    return split[0] if split is not None else sp.diff(expr, w)
 
 
 def generate(eq: Equations, outputs=()) -> str:

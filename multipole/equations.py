@@ -165,14 +165,38 @@ class Equations:
 
 # ---------------------------------------------------------------------------------------------
 
+def linear_coefficient(expr, v):
+    """``(a, rest)`` with ``expr == a*v + rest`` and neither containing ``v``; None if not linear.
+
+    A fast path over the terms of a sum (the common case: node balances, ratios, storage laws);
+    anything else falls back to sympy's differentiation.
+    """
+    coeffs, rest = [], []
+    for term in sp.Add.make_args(expr):
+        if v not in term.free_symbols:
+            rest.append(term)
+            continue
+        factors = sp.Mul.make_args(term)
+        if factors.count(v) != 1 or any(v in f.free_symbols for f in factors if f != v):
+            a = sp.diff(expr, v)
+            if v in a.free_symbols:
+                return None
+            return a, sp.expand(expr - a * v)
+        coeffs.append(sp.Mul(*[f for f in factors if f != v]))
+    return sp.Add(*coeffs), sp.Add(*rest)
+
+
 def _solve_single(expr, v):
     """Solve ``expr == 0`` for ``v``; None if it is not explicitly solvable."""
-    a = sp.diff(expr, v)
-    if v not in a.free_symbols:
-        rest = sp.expand(expr - a * v)
-        if v not in rest.free_symbols and a != 0:
-            return sp.cancel(-rest / a) if sp.count_ops(rest) < 60 else -rest / a
-    return None
+    split = linear_coefficient(expr, v)
+    if split is None or split[0] == 0:
+        return None
+    a, rest = split
+    if a == 1:
+        return -rest
+    if a == -1:
+        return rest
+    return -rest / a
 
 
 def _solve_linear(residuals, zs):
@@ -251,12 +275,15 @@ def _loop_diag(analysis, owners, zs, kind, res):
 def _available(analysis: Analysis) -> dict:
     flat = analysis.flat
     out = {}
+    def rep(name):
+        r, sign = analysis.aliases[var(name)]
+        return sign * r
     for pp in flat.port_domains:
         for k in ("e", "f"):
-            out[f"{pp}.{k}"] = analysis.substitute(var(f"{pp}.{k}"))
+            out[f"{pp}.{k}"] = rep(f"{pp}.{k}")
     for ext, pp in flat.external_ports.items():
         for k in ("e", "f"):
-            out[f"{ext}.{k}"] = analysis.substitute(var(f"{pp}.{k}"))
+            out[f"{ext}.{k}"] = rep(f"{pp}.{k}")
     for s in flat.states:
         out[s.name] = s.symbol
     for u in flat.inputs:

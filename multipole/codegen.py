@@ -192,9 +192,15 @@ class _Writer:
         self.names = names
         self.printer = _Printer(names)
         self.units = _units(eq)
+        self._printed: dict = {}
+        self._lines: dict = {}
 
     def P(self, e) -> str:
-        return self.printer.doprint(sp.sympify(e).xreplace(self.pvals))
+        e = sp.sympify(e)
+        text = self._printed.get(e)
+        if text is None:
+            text = self._printed[e] = self.printer.doprint(e.xreplace(self.pvals))
+        return text
 
     def prologue(self, units, extra=()) -> list:
         n = len(self.states)
@@ -210,6 +216,12 @@ class _Writer:
         return lines
 
     def unit_lines(self, u: _Unit) -> list:
+        key = id(u)
+        if key not in self._lines:
+            self._lines[key] = self._unit_lines(u)
+        return self._lines[key]
+
+    def _unit_lines(self, u: _Unit) -> list:
         N, P = self.names, self.P
         zs = u.variables
         if u.kind == "assign":

@@ -186,9 +186,9 @@ class MTF(Primitive):
         fb = [V.f(f"b{j + 1}") for j in range(self.m)]
         ea = [V.e(f"a{i + 1}") for i in range(self.n)]
         eb = [V.e(f"b{j + 1}") for j in range(self.m)]
-        rel = [Relation(fa[i] - sum(K[i, j] * fb[j] for j in range(self.m)), "constraint", None,
+        rel = [Relation(fa[i] - sp.Add(*[K[i, j] * fb[j] for j in range(self.m)]), "constraint", None,
                         f"flow row {i + 1} of f_a = K*f_b") for i in range(self.n)]
-        rel += [Relation(eb[j] + sum(K[i, j] * ea[i] for i in range(self.n)), "constraint", None,
+        rel += [Relation(eb[j] + sp.Add(*[K[i, j] * ea[i] for i in range(self.n)]), "constraint", None,
                          f"effort row {j + 1} of e_b = -K^T*e_a") for j in range(self.m)]
         return rel
 
@@ -235,7 +235,7 @@ class Junction(Primitive):
         first = names[0]
         rel = [Relation(sig[p] * get[common](p) - sig[first] * get[common](first), "constraint", None,
                         f"common {'flow' if common == 'f' else 'effort'}") for p in names[1:]]
-        rel.append(Relation(sum(sig[p] * get[summed](p) for p in names), "constraint", None,
+        rel.append(Relation(sp.Add(*[sig[p] * get[summed](p) for p in names]), "constraint", None,
                             f"{'efforts' if summed == 'e' else 'flows'} sum to zero"))
         return rel
 

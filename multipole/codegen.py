@@ -115,6 +115,7 @@ class Model:
         self.equations = equations
         self.state_names = equations.state_names
         self.output_names = list(outputs)
+        self.output_units = [equations.units.get(o, "") for o in self.output_names]
         self.x0 = np.array(equations.initial_values(), dtype=float)
         self.source = source
         self.stats = namespace["_stats"]

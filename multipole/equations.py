@@ -57,6 +57,7 @@ class Equations:
     blocks: list
     available: dict               # output name -> expression
     diagnostics: list = field(default_factory=list)
+    units: dict = field(default_factory=dict)   # output name -> SI unit
     analysis: Analysis | None = None
 
     # -- look-ups --------------------------------------------------------------------------------
@@ -260,9 +261,9 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         if not derivative:
             diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res))
     states = analysis.states
-    available = _available(analysis)
+    available, units = _available(analysis)
     return Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
-                     analysis.flat.param_values(), blocks, available, diagnostics, analysis)
+                     analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
 
 
 def _loop_diag(analysis, owners, zs, kind, res):
@@ -275,19 +276,22 @@ def _loop_diag(analysis, owners, zs, kind, res):
 def _available(analysis: Analysis) -> dict:
     flat = analysis.flat
     out = {}
+    units = {}
+
     def rep(name):
         r, sign = analysis.aliases[var(name)]
         return sign * r
-    for pp in flat.port_domains:
-        for k in ("e", "f"):
-            out[f"{pp}.{k}"] = rep(f"{pp}.{k}")
-    for ext, pp in flat.external_ports.items():
-        for k in ("e", "f"):
-            out[f"{ext}.{k}"] = rep(f"{pp}.{k}")
+    for path, pp in [(pp, pp) for pp in flat.port_domains] + list(flat.external_ports.items()):
+        dom = flat.port_domains[pp]
+        for k, unit in (("e", dom.effort_unit), ("f", dom.flow_unit)):
+            out[f"{path}.{k}"] = rep(f"{pp}.{k}")
+            units[f"{path}.{k}"] = unit
     for s in flat.states:
         out[s.name] = s.symbol
+        units[s.name] = s.unit
     for u in flat.inputs:
         out[u.name] = u
-    for name, (expr, _unit, _doc) in flat.quantities.items():
+    for name, (expr, unit, _doc) in flat.quantities.items():
         out[name] = analysis.substitute(expr)
-    return out
+        units[name] = unit
+    return out, units

@@ -210,6 +210,10 @@ class _Flattener:
             if s.name in owner.signals:
                 mapping[s] = owner.signals[s.name]
                 continue
+            value = owner.params[s.name]
+            if isinstance(value, sp.Symbol) and value != T:      # an alias of an outer parameter
+                mapping[s] = self.resolve(value, owner.parent or owner, where)
+                continue
             g = var(_join(owner.path, s.name))
             if g not in self.flat.params:
                 self.flat.params[g] = None  # placeholder against recursion

@@ -45,6 +45,7 @@ class Result:
     solver_reason: str
     stats: dict = field(default_factory=dict)
     events: list = field(default_factory=list)   # (t, switching function text)
+    units: dict = field(default_factory=dict)    # output name -> SI unit
 
     def __getitem__(self, name):
         if name in self.outputs:
@@ -79,7 +80,8 @@ class Result:
         fig, axes = plt.subplots(n, 1, figsize=(8, 1.9 * n + 1.0), sharex=True, squeeze=False)
         for ax, name in zip(axes[:, 0], names):
             ax.plot(self.t, self[name], lw=1.4)
-            ax.set_ylabel(name, rotation=0, ha="right", va="center", fontsize=9)
+            unit = self.units.get(name, "")
+            ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, rotation=0, ha="right", va="center", fontsize=9)
             ax.grid(alpha=0.3)
             for te, _ in self.events[:50]:
                 ax.axvline(te, color="0.6", lw=0.6, ls=":")
@@ -227,7 +229,8 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
         raise SimulationError("not_finite", "the solution became infinite or NaN",
                               "check parameters (zero inertia? negative stiffness?) and the check report")
     outputs = {name: outs[:, k] for k, name in enumerate(model.output_names)}
-    return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events)
+    units = dict(zip(model.output_names, getattr(model, "output_units", [])))
+    return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events, units)
 
 
 def _accumulate(stats, ode, solver):

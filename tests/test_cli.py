@@ -59,7 +59,7 @@ def test_equations_formats(capsys):
     path = str(ROOT / "diagrams" / "drive_train.yaml")
     assert main(["equations", path]) == 0
     text = capsys.readouterr().out
-    assert "d/dt rotor.p" in text and "shaft.c" in text
+    assert "d/dt rotor.p" in text and "c_shaft*shaft.q" in text
     assert main(["equations", path, "--format", "latex"]) == 0
     assert "\\frac{d}{dt}" in capsys.readouterr().out
     assert main(["equations", path, "--format", "python"]) == 0
@@ -77,3 +77,19 @@ def test_elements_catalogue(capsys):
         assert f"  {name} " in listing
     assert main(["elements", "spring"]) == 0
     assert "c [N*m/rad | N/m]" in capsys.readouterr().out
+
+
+def test_linearize_modes_match_the_closed_form(capsys):
+    """Series RLC: eigenvalues -R/(2L) ± j*sqrt(1/(LC) - (R/2L)^2)."""
+    from multipole.linearize import linearize
+    R, L, C = 10.0, 0.1, 1.0e-4
+    scene = load(ROOT / "diagrams" / "rlc_series.yaml")
+    lin = linearize(pipeline.equations(scene), scene.outputs)
+    lam = sorted(np.linalg.eigvals(lin.A), key=lambda z: z.imag)
+    alpha, wd = R / (2 * L), np.sqrt(1 / (L * C) - (R / (2 * L)) ** 2)
+    assert np.allclose(lam, [-alpha - 1j * wd, -alpha + 1j * wd], rtol=1e-12)
+    # static gain from the supply voltage to the capacitor voltage is 1
+    G0 = lin.D - lin.C @ np.linalg.solve(lin.A, lin.B)
+    assert np.isclose(G0[scene.outputs.index("C1.v"), lin.inputs.index("supply.u")], 1.0, rtol=1e-12)
+    assert main(["linearize", str(ROOT / "diagrams" / "rlc_series.yaml")]) == 0
+    assert f"f_n = {1 / np.sqrt(L * C) / (2 * np.pi):.6g} Hz" in capsys.readouterr().out

@@ -1,0 +1,132 @@
+"""Linearisation (DESIGN §3: ``Equations ──linearize──▶ python-control StateSpace``).
+
+The explicit ODE is linearised symbolically about the initial state and the inputs at ``t = 0``:
+``A = ∂f/∂x``, ``B = ∂f/∂u``, ``C = ∂y/∂x``, ``D = ∂y/∂u`` with the scene's sources as inputs ``u``
+and its outputs as ``y``.  The result is a :class:`control.StateSpace` with named signals, plus the
+eigenvalues with their natural frequencies [Hz] and damping ratios.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from .equations import Equations
+from .errors import IllPosedError
+from .primitives import T
+
+
+@dataclass
+class Linearization:
+    """Matrices, names and modal data of a linearised scene."""
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    states: list
+    inputs: list
+    outputs: list
+
+    def statespace(self):
+        import control
+        def clean(names):          # python-control refuses dots in signal names
+            return [n.replace(".", "_") for n in names]
+        return control.ss(self.A, self.B, self.C, self.D, states=clean(self.states), inputs=clean(self.inputs),
+                          outputs=clean(self.outputs))
+
+    def modes(self) -> list[tuple[complex, float, float]]:
+        """(eigenvalue [1/s], natural frequency [Hz], damping ratio) sorted by frequency."""
+        out = []
+        for lam in np.linalg.eigvals(self.A) if self.A.size else []:
+            wn = abs(lam)
+            zeta = -lam.real / wn if wn > 0 else 1.0
+            out.append((complex(lam), wn / (2 * np.pi), zeta))
+        return sorted(out, key=lambda m: (m[1], m[0].imag))
+
+    def to_text(self) -> str:
+        def mat(name, M, rows, cols):
+            lines = [f"{name} ({len(rows)}x{len(cols)}), rows {', '.join(rows) or '-'}; columns {', '.join(cols) or '-'}"]
+            lines += ["  [" + ", ".join(f"{v: .6g}" for v in row) + "]" for row in M]
+            return lines
+        lines = mat("A", self.A, self.states, self.states) + mat("B", self.B, self.states, self.inputs)
+        lines += mat("C", self.C, self.outputs, self.states) + mat("D", self.D, self.outputs, self.inputs)
+        lines.append("Modes (eigenvalue, natural frequency, damping ratio):")
+        for lam, f, z in self.modes():
+            lines.append(f"  {lam.real: .6g}{lam.imag:+.6g}j 1/s   f_n = {f:.6g} Hz   zeta = {z:.4g}")
+        return "\n".join(lines)
+
+
+def linearize(eq: Equations, outputs) -> Linearization:
+    """Linearise ``eq`` about its initial state and the inputs at t = 0."""
+    if any(b.solution is None for b in eq.blocks):
+        raise IllPosedError("not_symbolic", "linearize needs every algebraic loop solved symbolically",
+                            "reduce the model or use the Jacobian of the compiled model (Model.jac)")
+    xs = [s.symbol for s in eq.states]
+    us = list(eq.inputs)
+    f = sp.Matrix([eq.substituted(d, max_ops=10**9) for d in eq.derivatives])
+    y = sp.Matrix([eq.substituted(eq.output(o), max_ops=10**9) for o in outputs])
+    point = {p: sp.Float(v) for p, v in eq.params.items()}
+    point.update({x: sp.Float(v) for x, v in zip(xs, eq.initial_values())})
+    point.update({u: sp.sympify(e).xreplace({T: 0}).xreplace(point) for u, e in eq.inputs.items()})
+    point[T] = sp.Float(0)
+
+    def num(M, wrt, rows):
+        if not wrt or not rows:
+            return np.zeros((rows, len(wrt)))
+        return np.array(M.jacobian(wrt).xreplace(point).evalf(), dtype=float).reshape(rows, len(wrt))
+
+    return Linearization(num(f, xs, len(xs)), num(f, us, len(xs)), num(y, xs, len(outputs)), num(y, us, len(outputs)),
+                         [s.name for s in eq.states], [u.name for u in us], list(outputs))
+
+
+def cmd_linearize(args) -> int:
+    """CLI: print the state-space matrices and modes; optionally a Bode plot."""
+    from . import pipeline
+    from .cli import _overrides
+    from .netlist import load
+    scene = load(args.file, _overrides(args.set))
+    eq = pipeline.equations(scene)
+    outputs = scene.outputs or eq.state_names
+    lin = linearize(eq, outputs)
+    print(f"# {scene.name}: linearised at t = 0 about the initial state")
+    print(lin.to_text())
+    if args.bode:
+        bode(lin, args.bode, scene.name)
+        print(f"wrote {args.bode}")
+    return 0
+
+
+def bode(lin: Linearization, path, title=""):
+    """Magnitude and phase of every input -> output pair, saved to ``path``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import control
+    sys = lin.statespace()
+    modes = [m[1] for m in lin.modes() if m[1] > 0]
+    lo = min(modes) / 30 if modes else 0.01
+    hi = max(modes) * 30 if modes else 100.0
+    w = 2 * np.pi * np.logspace(np.log10(lo), np.log10(hi), 600)
+    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for i, u in enumerate(lin.inputs):
+        for k, y in enumerate(lin.outputs):
+            resp = control.frequency_response(sys[k, i], w)
+            mag, phase = np.abs(resp.complex).ravel(), np.unwrap(np.angle(resp.complex).ravel())
+            if not np.any(mag > 0):
+                continue
+            ax_m.loglog(w / (2 * np.pi), mag, label=f"{u} → {y}")
+            ax_p.semilogx(w / (2 * np.pi), np.degrees(phase))
+    for f in modes:
+        ax_m.axvline(f, color="0.7", lw=0.7, ls=":")
+    ax_m.set_ylabel("|G|")
+    ax_p.set_ylabel("phase [deg]")
+    ax_p.set_xlabel("frequency [Hz]")
+    ax_m.grid(which="both", alpha=0.3)
+    ax_p.grid(which="both", alpha=0.3)
+    ax_m.legend(fontsize=7)
+    fig.suptitle(f"{title}: Bode plot (dotted: natural frequencies)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -12,7 +12,7 @@ from typing import Callable
 
 
 from .errors import ModelError
-from .primitives import C, GY, I, R, TF, Se, Sf, junction_a, junction_b
+from .primitives import C, GY, I, MTF, R, TF, CField, Se, Sf, Tap, junction_a, junction_b
 
 REQUIRED = object()
 
@@ -152,3 +152,25 @@ for _kind, _fn in (("a", junction_a), ("b", junction_b)):
         [Param("ports", "", "port names", kind="names"),
          Param("signs", "", "orientation +1/-1 per port", None, "numbers"), _DOMAIN],
         category="primitive"))
+register(ElementType(
+    "MTF", lambda matrix, domains_a, domains_b, q0: MTF(matrix, domains_a, domains_b, q0),
+    "multiport transformer f_a = K(q)·f_b, e_b = -Kᵀ·e_a; q1..qm = ∫ f_b (a Jacobian, e.g. of a linkage)",
+    {"a1..an": "one port per matrix row", "b1..bm": "one port per matrix column; qj = ∫ f_bj dt"},
+    [Param("matrix", "f_a/f_b", "n×m matrix K, entries numbers or expressions of q1..qm", kind="matrix", law_var="q"),
+     Param("domains_a", "", "domain of each a port", kind="names"),
+     Param("domains_b", "", "domain of each b port", kind="names"),
+     Param("q0", "displacement units", "initial displacements of the b ports", None, "numbers")],
+    {"q1..qm": "displacements of the b ports"}, category="primitive"))
+register(ElementType(
+    "CField", lambda compliance, domains, q0: CField(compliance, domains, q0),
+    "multiport compliance field q' = f, q = S·e (S symmetric: reciprocal coupling, e.g. piezo)",
+    {"p1..pn": "one port per matrix row"},
+    [Param("compliance", "displacement/effort", "symmetric n×n compliance matrix S", kind="matrix"),
+     Param("domains", "", "domain of each port", kind="names"),
+     Param("q0", "displacement units", "initial displacements", None, "numbers")],
+    {"q1..qn": "displacements"}, category="primitive"))
+register(ElementType(
+    "Tap", lambda domain, q0: Tap(domain, q0),
+    "displacement tap: takes no effort, integrates its flow into q (an angle or travel sensor)",
+    {"p": "the measured port"}, [_DOMAIN, Param("q0", "displacement unit", "initial displacement", 0.0)],
+    {"q": "displacement"}, category="primitive"))

@@ -290,9 +290,14 @@ class _Builder:
                 raise self.err("bad_value", f"{what} must be a list of numbers", line=line, element=element)
             return [float(self.expr(v, symbols, what, line, element)) for v in value]
         if p.kind == "matrix":
-            if not isinstance(value, list) or not all(isinstance(r, list) for r in value):
+            if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
                 raise self.err("bad_value", f"{what} must be a list of rows", line=line, element=element)
-            return [[self.expr(v, symbols, what, line, element) for v in row] for row in value]
+            if len({len(r) for r in value}) != 1:
+                raise self.err("bad_value", f"{what}: all rows must have the same length", line=line, element=element)
+            local = dict(symbols)
+            if p.law_var == "q":          # modulated matrices: q1, q2, ... are the b-port displacements
+                local.update({f"q{k}": sp.Symbol(f"q{k}") for k in range(1, len(value[0]) + 1)})
+            return [[self.expr(v, local, what, line, element) for v in row] for row in value]
         raise self.err("bad_value", f"{what}: unsupported parameter kind {p.kind}", line=line, element=element)
 
     def connections(self, raw, children) -> list:

@@ -65,8 +65,10 @@ def cmd_equations(args) -> int:
 
 def cmd_simulate(args) -> int:
     scene = load(args.file, _overrides(args.set))
-    analysis = pipeline.check(scene)
-    if not analysis.ok:
+    try:
+        pipeline.model(scene)
+    except IllPosedError:
+        analysis = pipeline.check(scene)
         print(f"{args.file}: not well-posed, nothing simulated (see 'multipole check {args.file}')", file=sys.stderr)
         for d in analysis.errors:
             print("  " + str(d).replace("\n", "\n  "), file=sys.stderr)

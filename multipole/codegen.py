@@ -109,15 +109,29 @@ def switching_functions(expr) -> list:
 
 
 class Model:
-    """Compiled model: ``rhs(t, x)``, ``jac(t, x)``, ``outputs(t, x)``, ``switches(t, x)``."""
+    """Compiled model: ``rhs(t, x)``, ``jac(t, x)``, ``outputs(t, x)``, ``switches(t, x)``.
 
-    def __init__(self, equations: Equations, outputs, source: str, namespace: dict):
+    Built from the generated ``source`` and a small ``meta`` record (names, initial state, units,
+    aliases), so a model can also be restored from the on-disk cache without sympy.
+    """
+
+    def __init__(self, source: str, meta: dict, equations: Equations | None = None):
         self.equations = equations
-        self.state_names = equations.state_names
-        self.output_names = list(outputs)
-        self.output_units = [equations.units.get(o, "") for o in self.output_names]
-        self.x0 = np.array(equations.initial_values(), dtype=float)
+        self.meta = meta
+        self.name = meta["name"]
+        self.state_names = list(meta["state_names"])
+        self.output_names = list(meta["outputs"])
+        self.output_units = [meta["units"].get(o, "") for o in self.output_names]
+        self.x0 = np.array(meta["x0"], dtype=float)
         self.source = source
+        self.compile_time = 0.0
+        self.cached = False
+        key = hashlib.sha256(source.encode()).hexdigest()
+        code = _CACHE.get(key)
+        if code is None:
+            code = _CACHE[key] = compile(source, f"<multipole model {self.name} {key[:8]}>", "exec")
+        namespace = {"newton": newton, "math": math, "np": np}
+        exec(code, namespace)   # our own generated source: numbers and sanitised names only
         self.stats = namespace["_stats"]
         self.rhs = namespace["rhs"]
         self.jac = namespace["jac"]
@@ -133,9 +147,9 @@ class Model:
         known = dict(zip(self.value_names, self.values(t, np.asarray(x, dtype=float))))
         known.update(zip(self.state_names, np.asarray(x, dtype=float).tolist()))
         out = dict(known)
-        for v, (rep, sign) in self.equations.analysis.aliases.items():
-            if rep.name in known:
-                out[v.name] = sign * known[rep.name]
+        for name, (rep, sign) in self.meta["aliases"].items():
+            if rep in known:
+                out[name] = sign * known[rep]
         return out
 
     def reset_stats(self):
@@ -341,11 +355,8 @@ _CACHE: dict = {}
 def compile_model(eq: Equations, outputs=()) -> Model:
     """Generate, compile (cached by source hash) and wrap the model functions."""
     source = generate(eq, outputs)
-    key = hashlib.sha256(source.encode()).hexdigest()
-    code = _CACHE.get(key)
-    if code is None:
-        code = compile(source, f"<multipole model {eq.name} {key[:8]}>", "exec")
-        _CACHE[key] = code
-    namespace = {"newton": newton, "math": math, "np": np}
-    exec(code, namespace)   # our own generated source: numbers and sanitised names only
-    return Model(eq, outputs, source, namespace)
+    meta = {"name": eq.name, "state_names": eq.state_names, "x0": [float(v) for v in eq.initial_values()],
+            "outputs": list(outputs), "units": {o: eq.units.get(o, "") for o in outputs},
+            "aliases": {v.name: [r.name, int(s)] for v, (r, s) in eq.analysis.aliases.items()}
+            if eq.analysis is not None else {}}
+    return Model(source, meta, eq)

@@ -1,9 +1,19 @@
 """The stages chained for a scene: check, equations, model, simulation.
 
 Each function takes a :class:`~multipole.netlist.Scene` and returns the object of its stage.
-Compiled models are cached in memory by the scene's digest and the requested outputs.
+Compiled models are cached in memory and on disk (``$MULTIPOLE_CACHE``, default
+``~/.cache/multipole``) by the scene's digest (netlist text and overrides), the requested outputs
+and a hash of the kernel's source, so a second ``simulate`` of an unchanged scene skips analysis
+and code generation.  ``MULTIPOLE_CACHE=off`` disables the disk cache.
 """
 from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from functools import lru_cache
+from pathlib import Path
 
 from .causality import Analysis, analyse
 from .codegen import Model, compile_model
@@ -44,13 +54,65 @@ def equations(scene: Scene, analysis: Analysis | None = None) -> Equations:
 
 
 def model(scene: Scene, outputs=None) -> Model:
-    """Compiled model for ``outputs`` (default: the scene's outputs, else the states)."""
+    """Compiled model for ``outputs`` (default: the scene's outputs, else the states).
+
+    ``model.compile_time`` is the time spent analysing and generating code [s] (0 when restored
+    from the disk cache, then ``model.cached`` is True).
+    """
     key = (scene.digest, tuple(outputs) if outputs is not None else None)
-    if key not in _MODELS:
+    if key in _MODELS:
+        return _MODELS[key]
+    path = _cache_path(key)
+    m = _restore(path)
+    if m is None:
+        start = time.perf_counter()
         eq = equations(scene)
         outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
-        _MODELS[key] = compile_model(eq, outs)
-    return _MODELS[key]
+        m = compile_model(eq, outs)
+        m.compile_time = time.perf_counter() - start
+        _store(path, m)
+    _MODELS[key] = m
+    return m
+
+
+@lru_cache(maxsize=1)
+def _kernel_hash() -> str:
+    h = hashlib.sha256()
+    for f in sorted(Path(__file__).parent.rglob("*.py")):
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
+def _cache_path(key) -> Path | None:
+    root = os.environ.get("MULTIPOLE_CACHE", str(Path.home() / ".cache" / "multipole"))
+    if root.lower() in ("off", "0", "none", ""):
+        return None
+    digest = hashlib.sha256(repr((key, _kernel_hash())).encode()).hexdigest()
+    return Path(root) / f"model-{digest[:32]}.json"
+
+
+def _restore(path) -> Model | None:
+    if path is None or not path.exists():
+        return None
+    try:
+        data = json.loads(path.read_text())
+        m = Model(data["source"], data["meta"])
+    except (OSError, ValueError, KeyError, SyntaxError):
+        return None          # a damaged cache entry is ignored and rewritten
+    m.cached = True
+    return m
+
+
+def _store(path, m: Model) -> None:
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps({"source": m.source, "meta": m.meta}))
+        tmp.replace(path)
+    except OSError:
+        pass                 # a read-only home must not stop a simulation
 
 
 def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None, progress=None,
@@ -75,8 +137,11 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
                                     opts.get("solver", "auto"), opts.get("rtol", 1e-6), opts.get("atol", 1e-9),
                                     opts.get("max_step", float("inf")), progress)
     m = model(scene, outputs)
-    return simulate(m, opts["t_end"], opts.get("dt_out"), opts.get("solver", "auto"), opts.get("rtol", 1e-6),
-                    opts.get("atol", 1e-9), opts.get("max_step", float("inf")), progress=progress)
+    result = simulate(m, opts["t_end"], opts.get("dt_out"), opts.get("solver", "auto"), opts.get("rtol", 1e-6),
+                      opts.get("atol", 1e-9), opts.get("max_step", float("inf")), progress=progress)
+    result.stats["compile_time"] = m.compile_time
+    result.stats["model_cached"] = m.cached
+    return result
 
 
 __all__ = ["check", "equations", "model", "run", "IllPosedError"]

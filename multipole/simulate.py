@@ -66,6 +66,10 @@ class Result:
                  f"steps {s.get('steps', 0)}", f"rejected {s.get('rejected', 'n/a')}",
                  f"nfev {s.get('nfev', 0)}", f"njev {s.get('njev', 0)}", f"nlu {s.get('nlu', 0)}",
                  f"events {len(self.events)}", f"wall {s.get('wall_time', 0):.3g} s"]
+        if s.get("model_cached"):
+            parts.append("model from cache")
+        elif "compile_time" in s:
+            parts.append(f"compile {s['compile_time']:.3g} s")
         if s.get("newton_solves"):
             parts.append(f"newton {s['newton_iterations']} it / {s['newton_solves']} solves")
         return ", ".join(parts)

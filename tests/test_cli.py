@@ -93,3 +93,16 @@ def test_linearize_modes_match_the_closed_form(capsys):
     assert np.isclose(G0[scene.outputs.index("C1.v"), lin.inputs.index("supply.u")], 1.0, rtol=1e-12)
     assert main(["linearize", str(ROOT / "diagrams" / "rlc_series.yaml")]) == 0
     assert f"f_n = {1 / np.sqrt(L * C) / (2 * np.pi):.6g} Hz" in capsys.readouterr().out
+
+
+def test_models_are_restored_from_the_disk_cache():
+    path = ROOT / "diagrams" / "rlc_series.yaml"
+    first = pipeline.run(load(path), t_end=0.01, progress=False)
+    pipeline._MODELS.clear()                       # as in a new process
+    second = pipeline.run(load(path), t_end=0.01, progress=False)
+    assert second.stats["model_cached"] and not first.stats["model_cached"]
+    assert np.array_equal(first["C1.v"], second["C1.v"])
+    pipeline._MODELS.clear()
+    changed = pipeline.run(load(path, {"V": "6"}), t_end=0.01, progress=False)   # other digest
+    assert not changed.stats["model_cached"]
+    assert np.allclose(changed["C1.v"], first["C1.v"] / 2, rtol=1e-6, atol=1e-9)

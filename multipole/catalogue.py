@@ -55,6 +55,22 @@ class ElementType:
     def param(self, name: str) -> Param | None:
         return next((p for p in self.params if p.name == name), None)
 
+    def markdown(self) -> str:
+        """A reference section for docs/elements.md."""
+        lines = [f"### `{self.name}`", "", self.doc, "", "| port | meaning |", "| --- | --- |"]
+        lines += [f"| `{p}` | {d} |" for p, d in self.ports.items()]
+        lines += ["", "| parameter | unit | default | meaning |", "| --- | --- | --- | --- |"]
+        for p in self.params:
+            default = "required" if p.required else ("—" if p.default is None else f"`{p.default}`")
+            extra = f" (one of {', '.join(p.choices)})" if p.choices else ""
+            lines.append(f"| `{p.name}` | {p.unit or '–'} | {default} | {p.doc}{extra} |")
+        for group in self.one_of:
+            lines.append(f"\nGive exactly one of {', '.join(f'`{g}`' for g in group)}.")
+        if self.quantities:
+            lines += ["", "| quantity | meaning |", "| --- | --- |"]
+            lines += [f"| `{q}` | {d} |" for q, d in self.quantities.items()]
+        return "\n".join(lines) + "\n"
+
     def describe(self) -> str:
         lines = [f"{self.name} — {self.doc}", "  ports:"]
         lines += [f"    {p}: {d}" for p, d in self.ports.items()]

@@ -84,7 +84,23 @@ def _sym(value) -> sp.Expr:
     return value if isinstance(value, sp.Basic) else sp.sympify(float(value))
 
 
-class Se(Primitive):
+class _Source(Primitive):
+    """A one-port source imposing ``value(t)`` on its neighbour; ``variable`` is "e" or "f"."""
+
+    variable = "e"
+
+    def __init__(self, value, dom="rotational"):
+        super().__init__({"p": dom}, {"value": _sym(value)})
+
+    def relations(self, V):
+        own = V.e("p") if self.variable == "e" else V.f("p")
+        sign = self.ports["p"].imposed_sign(self.variable)
+        word = "effort" if self.variable == "e" else "flow"
+        return [Relation(own - sign * V.input(self.params["value"]), "source", own,
+                         f"{word} source imposes {self.params['value']}")]
+
+
+class Se(_Source):
     """Effort source: imposes ``value(t)`` as the effort its neighbour sees at port ``p``.
 
     In a mechanical domain a positive value accelerates a free inertia in the positive direction;
@@ -92,30 +108,14 @@ class Se(Primitive):
     """
 
     kind = "Se"
-
-    def __init__(self, value, dom="rotational"):
-        super().__init__({"p": dom}, {"value": _sym(value)})
-
-    def relations(self, V):
-        d = self.ports["p"]
-        s = d.imposed_sign("e")
-        return [Relation(V.e("p") - s * V.input(self.params["value"]), "source", V.e("p"),
-                         f"effort source imposes {self.params['value']}")]
+    variable = "e"
 
 
-class Sf(Primitive):
+class Sf(_Source):
     """Flow source: imposes ``value(t)`` as the flow its neighbour sees at port ``p``."""
 
     kind = "Sf"
-
-    def __init__(self, value, dom="rotational"):
-        super().__init__({"p": dom}, {"value": _sym(value)})
-
-    def relations(self, V):
-        d = self.ports["p"]
-        s = d.imposed_sign("f")
-        return [Relation(V.f("p") - s * V.input(self.params["value"]), "source", V.f("p"),
-                         f"flow source imposes {self.params['value']}")]
+    variable = "f"
 
 
 class TF(Primitive):

@@ -143,20 +143,23 @@ class FlatNetwork:
         return out
 
     def param_values(self) -> dict:
-        """Numeric value of every parameter symbol, with parameter expressions resolved."""
+        """Numeric value of every parameter symbol, with parameter expressions resolved (cached)."""
+        cached = getattr(self, "_values", None)
+        if cached is not None and len(cached) == len(self.params):
+            return dict(cached)
         values: dict = {}
 
         def value(s):
             if s not in values:
                 ex = sp.sympify(self.params[s])
                 deps = [d for d in ex.free_symbols if d in self.params]
-                values[s] = float(ex.subs({d: value(d) for d in deps})) if deps or ex.free_symbols == set() \
-                    else float(ex)
+                values[s] = float(ex.xreplace({d: sp.Float(value(d)) for d in deps})) if deps else float(ex)
             return values[s]
 
         for s in self.params:
             value(s)
-        return values
+        self._values = values
+        return dict(values)
 
     def element_of(self, path: str) -> str:
         """The top-level element a primitive path or port path belongs to."""
@@ -298,10 +301,12 @@ class _Flattener:
             self.flat.graph.add_edge(node.name, p.rsplit(".", 1)[0], port=p)
         common, summed = ("f", "e") if dom.node_kind == "b" else ("e", "f")
         first = var(f"{pps[0]}.{common}")
+        minus_first = sp.Mul(sp.S.NegativeOne, first, evaluate=False)
         for p in pps[1:]:
-            self.flat.equations.append(Equation(var(f"{p}.{common}") - first, node.name, "node", None,
+            self.flat.equations.append(Equation(sp.Add(var(f"{p}.{common}"), minus_first, evaluate=False),
+                                                node.name, "node", None,
                                                 "common " + ("speed" if common == "f" else "effort")))
-        self.flat.equations.append(Equation(sp.Add(*[var(f"{p}.{summed}") for p in pps]), node.name,
+        self.flat.equations.append(Equation(sp.Add(*[var(f"{p}.{summed}") for p in pps], evaluate=False), node.name,
                                             "node", None, "balance at the node"))
 
     def terminate(self):

@@ -3,7 +3,7 @@
 Each function takes a :class:`~multipole.netlist.Scene` and returns the object of its stage.
 Compiled models are cached in memory and on disk (``$MULTIPOLE_CACHE``, default
 ``~/.cache/multipole``) by the scene's digest (netlist text and overrides), the requested outputs
-and a hash of the kernel's source, so a second ``simulate`` of an unchanged scene skips analysis
+and a hash of the kernel's and the element libraries' source, so a second ``simulate`` of an unchanged scene skips analysis
 and code generation.  ``MULTIPOLE_CACHE=off`` disables the disk cache.
 """
 from __future__ import annotations
@@ -76,9 +76,19 @@ def model(scene: Scene, outputs=None) -> Model:
 
 
 @lru_cache(maxsize=1)
-def _kernel_hash() -> str:
+def _code_hash() -> str:
+    """Hash of the kernel's source and of every module that registered element types."""
+    import inspect
+    import sys
+    from .catalogue import catalogue
+    files = set(Path(__file__).parent.rglob("*.py"))
+    for et in catalogue().values():
+        module = sys.modules.get(getattr(et.build, "__module__", ""), None)
+        path = inspect.getsourcefile(module) if module is not None else None
+        if path:
+            files.update(Path(path).parent.glob("*.py"))
     h = hashlib.sha256()
-    for f in sorted(Path(__file__).parent.rglob("*.py")):
+    for f in sorted(files):
         h.update(f.read_bytes())
     return h.hexdigest()
 
@@ -87,7 +97,7 @@ def _cache_path(key) -> Path | None:
     root = os.environ.get("MULTIPOLE_CACHE", str(Path.home() / ".cache" / "multipole"))
     if root.lower() in ("off", "0", "none", ""):
         return None
-    digest = hashlib.sha256(repr((key, _kernel_hash())).encode()).hexdigest()
+    digest = hashlib.sha256(repr((key, _code_hash())).encode()).hexdigest()
     return Path(root) / f"model-{digest[:32]}.json"
 
 

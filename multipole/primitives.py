@@ -232,10 +232,17 @@ class Junction(Primitive):
         sig = dict(zip(names, self.params["signs"]))
         common, summed = ("f", "e") if self.type == "b" else ("e", "f")
         get = {"e": V.e, "f": V.f}
-        first = names[0]
-        rel = [Relation(sig[p] * get[common](p) - sig[first] * get[common](first), "constraint", None,
+
+        def signed(kind, p):
+            x = get[kind](p)
+            return x if sig[p] == 1 else sp.Mul(sp.S.NegativeOne, x, evaluate=False)
+
+        def minus(x):
+            return x.args[1] if isinstance(x, sp.Mul) else sp.Mul(sp.S.NegativeOne, x, evaluate=False)
+        first = signed(common, names[0])
+        rel = [Relation(sp.Add(signed(common, p), minus(first), evaluate=False), "constraint", None,
                         f"common {'flow' if common == 'f' else 'effort'}") for p in names[1:]]
-        rel.append(Relation(sp.Add(*[sig[p] * get[summed](p) for p in names]), "constraint", None,
+        rel.append(Relation(sp.Add(*[signed(summed, p) for p in names], evaluate=False), "constraint", None,
                             f"{'efforts' if summed == 'e' else 'flows'} sum to zero"))
         return rel
 

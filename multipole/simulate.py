@@ -23,9 +23,10 @@ from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 from scipy.optimize import brentq
 
 from .errors import MultipoleError
+from .solvers import GL4
 
-SOLVERS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA}
-IMPLICIT = {"Radau", "BDF", "LSODA"}
+SOLVERS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA, "GL4": GL4}
+IMPLICIT = {"Radau", "BDF", "LSODA", "GL4"}
 _STAGES = {"RK45": 6, "RK23": 3, "DOP853": 12}
 
 

@@ -1,0 +1,392 @@
+"""The ``numba`` backend: generated model functions *and* the integrator loop run compiled.
+
+``multipole simulate FILE --backend numba`` (or ``pipeline.run(scene, backend="numba")``).
+
+How a run goes:
+
+1. *Translation* — the :class:`~multipole.equations.Equations` are printed as Python source by a
+   subclass of the kernel's code writer (:class:`multipole.codegen._Writer`): the right-hand side,
+   the forward-mode Jacobian, the outputs and the switching functions, each as a function
+   ``fun(t, x, out, w)`` that writes into ``out`` (no allocation on the hot path); numeric linear
+   loops are solved by a small LU, nonlinear loops by a damped Newton iteration warm-started from
+   the work array ``w``.  Thin entry points hand these functions to the generic compiled loops of
+   :mod:`multipole.backends.numba_kernels` (Dormand–Prince 5(4) or Radau IIA(5), events, output
+   sampling).
+2. *Compilation* — the source is written to ``$MULTIPOLE_CACHE/numba/m_<hash>.py`` (default
+   ``~/.cache/multipole``), keyed by a hash of the source, the kernel source and the numba
+   version, and compiled by numba with ``cache=True``: a later run of the same model, in this or
+   another process, loads the machine code from the ``__pycache__`` next to that file.
+3. *Run* — the compiled loop integrates from 0 to ``t_end`` and fills the ``dt_out`` grid.
+
+``Result.stats`` keeps ``translate_time`` (sympy to source), ``compile_time`` (translation plus
+numba compilation or cache load), ``run_time`` (the compiled integration and output sampling,
+also reported as ``wall_time``) in seconds, ``compile_cached`` and the work counters ``nfev``,
+``njev``, ``nlu``, ``steps``, ``rejected``, ``segments``, ``newton_iterations``, ``newton_solves``.
+
+Solvers: ``RK45`` (Dormand–Prince 5(4), explicit), ``Radau`` (Radau IIA order 5, implicit, analytic
+Jacobian) and ``auto`` (the stiffness test of :func:`multipole.simulate.choose_solver`).  ``DOP853``
+and ``RK23`` run as ``RK45``, ``BDF`` and ``LSODA`` as ``Radau``; ``Result.solver_reason`` says so.
+Models numba cannot compile run on the ``numpy`` backend, with the reason in ``solver_reason``.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from .. import codegen
+from ..simulate import Result, SimulationError, _Progress, choose_solver
+from . import numba_kernels as K
+from . import register_backend
+
+import numba
+
+#: explicit and implicit method of this backend, and what the other scipy names run as
+METHODS = {"RK45": "RK45", "Radau": "Radau", "DOP853": "RK45", "RK23": "RK45", "BDF": "Radau", "LSODA": "Radau"}
+_DESCRIPTION = {"RK45": "Dormand-Prince 5(4)", "Radau": "Radau IIA order 5"}
+MAX_EVENTS = 5000
+#: accepted steps per call of the compiled loop while a progress bar is shown
+PROGRESS_CHUNK = 200
+
+
+class _Printer(codegen._Printer):
+    """The kernel's printer, with ``sign`` parenthesised and ``Piecewise`` always total."""
+
+    def _print_sign(self, e):
+        a = self._print(e.args[0])
+        return f"(math.copysign(1.0, {a}) if ({a}) != 0 else 0.0)"
+
+    def _print_Piecewise(self, e):
+        parts = []
+        for expr, cond in e.args:
+            if cond == sp.true:
+                return "(" + "".join(parts) + f"({self._print(expr)}))"
+            parts.append(f"({self._print(expr)}) if ({self._print(cond)}) else ")
+        return "(" + "".join(parts) + "math.nan)"
+
+
+class _Writer(codegen._Writer):
+    """Prints the model as numba functions ``fun(t, x, out, w)``."""
+
+    def __init__(self, eq):
+        super().__init__(eq)
+        self.printer = _Printer(self.names)
+        self.blocks_src: list[str] = []      # module-level residual functions of Newton loops
+        self.work = 2                        # w[0]: Newton iterations, w[1]: Newton solves
+        self.offsets: dict = {}
+
+    def prologue(self, units, extra=()) -> list:
+        used = set(extra).union(*(u.deps for u in units)) if units else set(extra)
+        lines = [f"    x{i} = x[{i}]" for i, s in enumerate(self.states) if s in used]
+        lines += [f"    {self.names[u]} = {self.P(e)}" for u, e in self.eq.inputs.items() if u in used]
+        for u in units:
+            lines += self.unit_lines(u)
+        return lines
+
+    def unit_lines(self, u) -> list:
+        if u.kind == "assign":
+            return super().unit_lines(u)
+        N, P = self.names, self.P
+        b = self.eq.blocks[u.block]
+        zs = u.variables
+        n = len(zs)
+        if u.kind == "linear":
+            lines = [f"    _A = np.empty(({n}, {n}))", f"    _b = np.empty({n})",
+                     f"    _piv = np.empty({n}, dtype=np.int64)"]
+            lines += [f"    _A[{i}, {j}] = {P(b.matrix[i, j])}" for i in range(n) for j in range(n)]
+            lines += [f"    _b[{i}] = {P(b.rhs[i])}" for i in range(n)]
+            lines += ["    _k.lu_factor(_A, _piv)", "    _k.lu_solve(_A, _piv, _b)"]
+            return lines + [f"    {N[z]} = _b[{i}]" for i, z in enumerate(zs)]
+        return self.newton_lines(u, b)
+
+    def newton_lines(self, u, b) -> list:
+        """A module-level residual function for the loop and the call of the Newton kernel."""
+        N, P = self.names, self.P
+        zs = u.variables
+        n = len(zs)
+        k = u.block
+        if k not in self.offsets:
+            self.offsets[k] = self.work
+            self.work += n
+            res = [sp.sympify(r).xreplace(self.pvals) for r in b.residuals]
+            deps = [sp.Symbol("t")] if False else []
+            free = set().union(*(r.free_symbols for r in res)) - set(zs)
+            deps = sorted(free, key=lambda s: N[s])
+            Jz = sp.Matrix(res).jacobian(zs)
+            src = [f"@njit(cache=True)", f"def _blk{k}(_z, _a):",
+                   f'    """Residuals of the algebraic loop for {", ".join(map(str, zs))} and their Jacobian."""']
+            if deps:
+                src.append(f"    {', '.join(N[d] for d in deps)}, = _a")
+            src += [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
+            src += [f"    _F = np.empty({n})", f"    _J = np.empty(({n}, {n}))"]
+            src += [f"    _F[{i}] = {P(r)}" for i, r in enumerate(res)]
+            src += [f"    _J[{i}, {j}] = {P(Jz[i, j])}" for i in range(n) for j in range(n)]
+            src += ["    return _F, _J", ""]
+            self.blocks_src += src
+            self.deps = getattr(self, "deps", {})
+            self.deps[k] = deps
+        deps = self.deps[k]
+        off = self.offsets[k]
+        args = "(" + ", ".join(f"float({N[d]})" for d in deps) + ("," if len(deps) == 1 else "") + ")" \
+            if deps else "(0.0,)"
+        return [f"    _z = _k.newton(_blk{k}, w, {off}, {n}, {args})"] + \
+            [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
+
+    def function(self, name, doc, needed, values) -> list:
+        """``def name(t, x, out, w)`` computing ``values`` (codes) into ``out``."""
+        units = codegen._closure(self.units, needed)
+        return [f"@njit(cache=True)", f"def {name}(t, x, out, w):", f'    """{doc}"""'] + \
+            self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)] + ["    return", ""]
+
+    def jacobian_function(self) -> list:
+        """The kernel writer's forward-mode Jacobian, wrapped to write into ``out``."""
+        lines = self.jacobian()
+        body = [ln for ln in lines[1:] if "_stats[" not in ln]
+        return ["@njit(cache=True)", "def _jac_alloc(t, x, w):"] + body + \
+            ["@njit(cache=True)", "def jac(t, x, out, w):", '    """Jacobian d(rhs)/dx into out."""',
+             "    out[:, :] = _jac_alloc(t, x, w)", ""]
+
+
+def switch_list(writer) -> list:
+    """The switching functions, found by the same rule as :func:`multipole.codegen.generate`."""
+    return list(dict.fromkeys(s for u in writer.units for e in u.exprs for s in codegen.switching_functions(e)
+                              if s.free_symbols))
+
+
+def _kernel_digest() -> str:
+    h = hashlib.sha256(Path(K.__file__).read_bytes())
+    h.update(Path(__file__).read_bytes())
+    h.update(numba.__version__.encode())
+    h.update(sys.version.encode())
+    return h.hexdigest()[:16]
+
+
+def generate(eq, outputs) -> tuple[str, list]:
+    """Source of the numba module for ``eq`` and the text of its switching functions."""
+    w = _Writer(eq)
+    N, P = w.names, w.P
+    ders = [N[d] if d in N else P(d) for d in eq.derivatives]
+    body = w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives, ders)
+    out_exprs = [eq.output(o) for o in outputs]
+    needed = set().union(*(e.free_symbols for e in out_exprs)) if out_exprs else set()
+    body += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed, [P(e) for e in out_exprs])
+    sw = switch_list(w)
+    needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
+    body += w.function("switches", "Switching functions: a sign change is an event.", needed, [P(s) for s in sw])
+    body += w.jacobian_function()
+    entry = []
+    for name, step, order, implicit in (("explicit", "dp_step", "DP_ORDER", False),
+                                        ("implicit", "radau_step", "RA_ORDER", True)):
+        entry += ["@njit(cache=True)",
+                  f"def integrate_{name}(fs, iw, x, f, grid, X, g_sign, ev_t, ev_k, Q, y_old, J, LUr, pr, LUc, pc, w,"
+                  " max_steps):",
+                  f"    _k.integrate(rhs, jac, switches, _k.{step}, _k.{order}, {implicit}, fs, iw, x, f, grid, X,"
+                  " g_sign, ev_t, ev_k, Q, y_old, J, LUr, pr, LUc, pc, w, max_steps)", ""]
+    entry += ["@njit(cache=True)", "def sample(w, grid, X, Y):", "    _k.sample(outputs, w, grid, X, Y)", ""]
+    head = [f'"""numba model of {eq.name!r}, generated by multipole.backends.numba_backend: do not edit."""',
+            f"# kernels {_kernel_digest()}", "import math", "", "import numpy as np", "from numba import njit", "",
+            "from multipole.backends import numba_kernels as _k", "",
+            f"N_WORK = {w.work}", ""]
+    return "\n".join(head + w.blocks_src + body + entry) + "\n", [str(s) for s in sw]
+
+
+# -- compilation and cache ---------------------------------------------------------------------------
+_LOADED: dict = {}
+
+
+def cache_dir() -> Path:
+    """Where generated modules and numba's machine code are kept (``$MULTIPOLE_CACHE/numba``)."""
+    root = os.environ.get("MULTIPOLE_CACHE", str(Path.home() / ".cache" / "multipole"))
+    if root.lower() in ("off", "0", "none", ""):
+        return Path(tempfile.gettempdir()) / f"multipole-numba-{os.getuid() if hasattr(os, 'getuid') else 0}"
+    return Path(root) / "numba"
+
+
+def load(source: str):
+    """Import the generated module (written once per source hash); numba compiles lazily."""
+    key = hashlib.sha256(source.encode()).hexdigest()[:24]
+    if key in _LOADED:
+        return _LOADED[key]
+    folder = cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"m_{key}.py"
+    if not path.exists() or path.read_text() != source:
+        tmp = folder / f".m_{key}.{os.getpid()}.tmp"
+        tmp.write_text(source)
+        tmp.replace(path)      # atomic: parallel runs never import a half-written file
+    name = f"_multipole_numba_{key}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    _LOADED[key] = module
+    return module
+
+
+class _Work:
+    """Every array the compiled loop keeps between steps (see :mod:`numba_kernels`)."""
+
+    def __init__(self, n: int, n_switches: int, n_work: int, grid: np.ndarray, x0, t_end, rtol, atol, max_step):
+        self.fs = np.zeros(K.N_FS)
+        self.fs[[K.F_T, K.F_T_END, K.F_RTOL, K.F_ATOL, K.F_MAX_STEP]] = 0.0, t_end, rtol, atol, max_step
+        self.iw = np.zeros(K.N_IW, dtype=np.int64)
+        self.iw[K.I_FRESH] = 1
+        self.iw[K.I_FORCED] = -1
+        self.x = np.array(x0, dtype=float)
+        self.f = np.zeros(n)
+        self.grid = grid
+        self.X = np.zeros((grid.size, n))
+        self.g_sign = np.zeros(n_switches)
+        self.ev_t = np.zeros(MAX_EVENTS + 1)
+        self.ev_k = np.zeros(MAX_EVENTS + 1, dtype=np.int64)
+        self.Q = np.zeros((n, K.DENSE_COLS))
+        self.y_old = np.zeros(n)
+        self.J = np.zeros((n, n))
+        self.LUr = np.zeros((n, n))
+        self.pr = np.zeros(n, dtype=np.int64)
+        self.LUc = np.zeros((n, n), dtype=np.complex128)
+        self.pc = np.zeros(n, dtype=np.int64)
+        self.w = np.zeros(n_work)
+
+    def args(self, max_steps):
+        return (self.fs, self.iw, self.x, self.f, self.grid, self.X, self.g_sign, self.ev_t, self.ev_k, self.Q,
+                self.y_old, self.J, self.LUr, self.pr, self.LUc, self.pc, self.w, max_steps)
+
+
+def _compile(module, method: str, n: int, n_switches: int) -> bool:
+    """Compile (or load from numba's cache) the entry points used by ``method``; True if cached."""
+    work = _Work(n, n_switches, module.N_WORK, np.zeros(1), np.zeros(n), 1.0, 1e-6, 1e-9, np.inf)
+    entry = getattr(module, "integrate_explicit" if method == "RK45" else "integrate_implicit")
+    entry(*work.args(0))                  # max_steps = 0: types only, nothing integrated
+    module.sample(work.w, work.grid, work.X, np.zeros((1, 0)))
+    hits = sum(sum(f.stats.cache_hits.values()) for f in (entry, module.sample))
+    return hits > 0
+
+
+def output_grid(t_end: float, dt_out: float | None) -> np.ndarray:
+    """0, dt_out, 2 dt_out, ... and ``t_end`` itself (both ends included) [s]."""
+    dt_out = dt_out or t_end / 500
+    n_out = int(round(t_end / dt_out))
+    if abs(n_out * dt_out - t_end) > 1e-9 * t_end:
+        n_out = int(np.floor(t_end / dt_out))
+    grid = np.arange(n_out + 1) * dt_out
+    if abs(grid[-1] - t_end) > 1e-9 * t_end:
+        grid = np.append(grid, t_end)
+    grid[-1] = min(grid[-1], t_end)
+    return grid
+
+
+class _JacobianView:
+    """What :func:`choose_solver` needs: ``x0`` and ``jac(t, x)`` backed by the compiled Jacobian."""
+
+    def __init__(self, module, x0, n_work):
+        self.module, self.x0, self.w = module, np.asarray(x0, dtype=float), np.zeros(n_work)
+
+    def jac(self, t, x):
+        out = np.zeros((len(x), len(x)))
+        self.module.jac(float(t), np.asarray(x, dtype=float), out, self.w)
+        return out
+
+
+_STATUS = {K.STEP_TOO_SMALL: ("step_failed", "the step size fell below the resolution of t",
+                              "try solver auto or Radau, or tighter tolerances"),
+           K.NOT_FINITE: ("not_finite", "the solution became infinite or NaN",
+                          "check parameters (zero inertia? negative stiffness?) and the check report"),
+           K.TOO_MANY_EVENTS: ("chattering", f"more than {MAX_EVENTS} switching events",
+                               "regularise the law or check the model")}
+
+
+def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9, max_step=np.inf,
+        progress=None) -> Result:
+    """Simulate ``equations`` from 0 to ``t_end`` [s] with compiled code; see the module docstring."""
+    if t_end <= 0:
+        raise SimulationError("bad_time", f"t_end must be positive, got {t_end}")
+    if solver != "auto" and solver not in METHODS:
+        raise SimulationError("unknown_solver", f"unknown solver {solver!r}",
+                              f"use auto or one of {', '.join(METHODS)}")
+    outputs = list(outputs)
+    start = time.perf_counter()
+    source, switch_text = generate(equations, outputs)
+    translate = time.perf_counter() - start
+    n = len(equations.states)
+    x0 = np.array(equations.initial_values(), dtype=float)
+    try:
+        module = load(source)
+        method, reason = _method(module, solver, x0, t_end, rtol)
+        cached = _compile(module, method, n, len(switch_text))
+    except (numba.core.errors.NumbaError, OSError) as exc:
+        return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
+    compile_time = time.perf_counter() - start
+
+    grid = output_grid(t_end, dt_out)
+    rtol = max(rtol, 100 * np.finfo(float).eps)
+    work = _Work(n, len(switch_text), module.N_WORK, grid, x0, t_end, rtol, atol, max_step)
+    entry = module.integrate_explicit if method == "RK45" else module.integrate_implicit
+    if progress is None:
+        progress = sys.stderr.isatty()
+    bar = _Progress(t_end, progress)
+    chunk = PROGRESS_CHUNK if progress else np.iinfo(np.int64).max
+    begin = time.perf_counter()
+    if n:
+        try:
+            while work.iw[K.I_STATUS] == K.RUNNING:
+                entry(*work.args(chunk))
+                bar.update(work.fs[K.F_T])
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+            raise SimulationError("step_failed", f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}") from None
+        status = int(work.iw[K.I_STATUS])
+        if status in _STATUS:
+            code, msg, fix = _STATUS[status]
+            raise SimulationError(code, f"{method} (numba) stopped at t = {work.fs[K.F_T]:.6g} s: {msg}", fix)
+    else:
+        work.X[:] = np.zeros((grid.size, 0))
+    bar.close()
+    Y = np.zeros((grid.size, len(outputs)))
+    if outputs:
+        module.sample(work.w, grid, work.X, Y)
+    run_time = time.perf_counter() - begin
+    if not np.all(np.isfinite(work.X)):
+        code, msg, fix = _STATUS[K.NOT_FINITE]
+        raise SimulationError(code, msg, fix)
+    iw = work.iw
+    stats = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
+             "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),
+             "newton_iterations": int(work.w[0]) if module.N_WORK > 2 else 0,
+             "newton_solves": int(work.w[1]) if module.N_WORK > 2 else 0,
+             "translate_time": translate, "compile_time": compile_time, "compile_cached": cached,
+             "run_time": run_time, "wall_time": run_time, "backend": "numba"}
+    events = [(float(work.ev_t[i]), switch_text[int(work.ev_k[i])]) for i in range(int(iw[K.I_NEV]))]
+    out = {name: Y[:, k].copy() for k, name in enumerate(outputs)}
+    return Result(grid, out, work.X, list(equations.state_names), method, reason, stats, events)
+
+
+def _method(module, solver, x0, t_end, rtol) -> tuple[str, str]:
+    """This backend's method for the requested ``solver`` and the reason, for ``solver_reason``."""
+    if solver == "auto":
+        chosen, why = choose_solver(_JacobianView(module, x0, module.N_WORK), t_end, rtol)
+        method = METHODS.get(chosen, "Radau")
+        return method, f"{why}; compiled {_DESCRIPTION[method]} (numba)"
+    method = METHODS[solver]
+    if method == solver:
+        return method, f"chosen by the user; compiled {_DESCRIPTION[method]} (numba)"
+    return method, f"{solver} requested; the numba backend runs it as {method} ({_DESCRIPTION[method]})"
+
+
+def _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc) -> Result:
+    """Run on the numpy backend when numba cannot compile the model; the reason goes with it."""
+    from . import get_backend
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    result = get_backend("numpy")(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress)
+    result.solver_reason += f"; numba backend could not compile this model ({first[:160]}), ran numpy instead"
+    result.stats["backend"] = "numpy (fallback)"
+    return result
+
+
+register_backend("numba", run)

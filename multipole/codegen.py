@@ -214,7 +214,13 @@ class _Writer:
         e = sp.sympify(e)
         text = self._printed.get(e)
         if text is None:
-            text = self._printed[e] = self.printer.doprint(e.xreplace(self.pvals))
+            folded = e.xreplace(self.pvals)
+            if folded.has(sp.zoo, sp.oo, sp.nan):
+                bad = sorted(str(p) for p in e.free_symbols if p in self.pvals and float(self.pvals[p]) == 0.0)
+                raise ModelError("infinite_value", f"the parameters make {e} infinite"
+                                 + (f" ({', '.join(bad)} = 0)" if bad else ""),
+                                 "a zero inertia, stiffness or resistance divides; use a node or a rigid coupling instead")
+            text = self._printed[e] = self.printer.doprint(folded)
         return text
 
     def prologue(self, units, extra=()) -> list:

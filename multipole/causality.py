@@ -361,6 +361,13 @@ class _Analyser:
                 break
         else:
             self.match()
+        leftover = self.over_groups()
+        if leftover and not self.errors():
+            owners = sorted({self.flat.element_of(self.equations[i].owner) for eqs, _ in leftover for i in eqs})
+            self.diagnostics.append(Diagnostic(
+                "overdetermined", f"the equations of {', '.join(owners)} impose more than they can "
+                "(structurally over-determined) and the analyser found no storage to resolve it",
+                "look for two rigid paths or two sources acting on the same variable", elements=owners))
         if not self.errors():
             missing, _ = self.under_vars()
             if missing:

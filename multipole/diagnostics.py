@@ -19,6 +19,8 @@ CATALOGUE: dict[str, tuple[str, str]] = {
         "error", "a rigid loop with inconsistent ratios: the only motion it admits is standstill"),
     "source_conflict": (
         "error", "two sources impose the same variable (or the balance of a massless node)"),
+    "overdetermined": (
+        "error", "equations that impose more than they can, with no storage to resolve it"),
     "underdetermined": (
         "error", "variables no equation determines"),
     "derivative_causality": (

@@ -39,7 +39,7 @@ def available() -> list[str]:
 
 
 #: optional backends: name -> module that registers it when imported
-_OPTIONAL: dict[str, str] = {}
+_OPTIONAL: dict[str, str] = {"numba": "multipole.backends.numba_backend"}
 
 
 def _load_optional(name: str) -> None:

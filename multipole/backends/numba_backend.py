@@ -80,7 +80,8 @@ class _Writer(codegen._Writer):
         self.printer = _Printer(self.names)
         self.blocks_src: list[str] = []      # module-level residual functions of Newton loops
         self.work = 2                        # w[0]: Newton iterations, w[1]: Newton solves
-        self.offsets: dict = {}
+        self.offsets: dict = {}              # Newton loop (block index) -> offset of its guess in w
+        self.deps: dict = {}                 # Newton loop -> symbols its residuals read
 
     def prologue(self, units, extra=()) -> list:
         used = set(extra).union(*(u.deps for u in units)) if units else set(extra)
@@ -116,7 +117,6 @@ class _Writer(codegen._Writer):
             self.offsets[k] = self.work
             self.work += n
             res = [sp.sympify(r).xreplace(self.pvals) for r in b.residuals]
-            deps = [sp.Symbol("t")] if False else []
             free = set().union(*(r.free_symbols for r in res)) - set(zs)
             deps = sorted(free, key=lambda s: N[s])
             Jz = sp.Matrix(res).jacobian(zs)
@@ -130,7 +130,6 @@ class _Writer(codegen._Writer):
             src += [f"    _J[{i}, {j}] = {P(Jz[i, j])}" for i in range(n) for j in range(n)]
             src += ["    return _F, _J", ""]
             self.blocks_src += src
-            self.deps = getattr(self, "deps", {})
             self.deps[k] = deps
         deps = self.deps[k]
         off = self.offsets[k]

@@ -601,3 +601,36 @@ def sample(outputs, w, grid, X, Y):
     """``Y[k] = outputs(grid[k], X[k])``."""
     for k in range(grid.size):
         outputs(grid[k], X[k], Y[k], w)
+
+
+# -- nonlinear algebraic loops ---------------------------------------------------------------------
+@njit
+def newton(fun, w, off, n, args, tol=1e-12, max_iter=60):
+    """Damped Newton for ``fun(z, args) = (F, dF/dz)``, warm-started from ``w[off:off+n]``.
+
+    The solution is stored back as the next starting guess; ``w[0]`` counts iterations and
+    ``w[1]`` solves (as :func:`multipole.codegen.newton`).  Raises ArithmeticError if it does
+    not converge."""
+    z = w[off:off + n].copy()
+    F, Jz = fun(z, args)
+    norm = np.sqrt(np.sum(F * F))
+    piv = np.empty(n, dtype=np.int64)
+    for it in range(1, max_iter + 1):
+        dz = F.copy()
+        lu_factor(Jz, piv)
+        lu_solve(Jz, piv, dz)
+        lam = 1.0
+        while True:
+            z_new = z - lam * dz
+            F_new, J_new = fun(z_new, args)
+            norm_new = np.sqrt(np.sum(F_new * F_new))
+            if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
+                break
+            lam *= 0.5
+        z, F, Jz, norm = z_new, F_new, J_new, norm_new
+        if np.max(np.abs(lam * dz)) <= tol * (1.0 + np.max(np.abs(z))) or norm == 0.0:
+            w[0] += it
+            w[1] += 1
+            w[off:off + n] = z
+            return z
+    raise ArithmeticError("Newton's method did not converge in an algebraic loop")

@@ -1,1 +1,187 @@
-"""(being written)"""
+"""Piezo element and piezo stack translator (Weber §6, eqs. (50)–(55), Bild 34–38).
+
+Longitudinal effect only, linear (or linearised about the operating point).
+
+``piezo_element`` — the eight-pole of Weber Bild 36, built from primitives::
+
+    mech_a ──┤ gap (type a) ├── tip (type b) ── mech_b          translational
+                   │                 │
+                field.p1          mass (I, m)
+                   │
+                 field  (CField, compliance [[delta_P, k_P], [k_P, C_P]])
+                   │
+                field.p2
+                   │
+    elec_a ──┤ loop (type b) ├── elec_b                          electrical
+                   │
+                 res (R)
+
+* Mechanical side: the type-a junction ``gap`` carries the same force through the element (the
+  force at the base is minus the force behind the tip mass) and adds the element's own extension
+  ``Δs*`` to the motion of the base: ``s1 = s0 + Δs*`` (Weber (51)/(52)).  The field's mechanical
+  effort is the tension ``T`` (positive when the element is pulled), its displacement the
+  extension ``Δs* = delta_P·T + k_P·U``.
+* Moving mass: Weber (53) ``(−F0) = F1 − m·a1`` accelerates the mass with the tip, ``a1 = s̈1``.
+  So the mass sits at the tip, between the active part and ``mech_b`` (type-b junction ``tip``);
+  the active part carries ``T = F1 − m·a1 = −F0`` and the extension is ``delta_P·T + k_P·U``.
+  In statics (``a1 = 0``) this is exactly Weber's (52) with ``F1``; in dynamics it is the force
+  that actually reaches the active part, the one (53) passes on to the base.
+* Electrical side: the kernel's electrical ports are pins (potentials), so the two electrodes are
+  ``elec_a`` (+) and ``elec_b`` (−); one current ``I`` flows in at ``elec_a`` and out at
+  ``elec_b`` (type-b junction ``loop``) through the series resistance ``R`` into the field:
+  ``e_a − e_b = R·I + U`` (Weber (55)), ``U`` the voltage on the piezo capacitance and
+  ``Q' = I`` its charge, ``Q = k_P·T + C_P·U`` (Weber (50)/(54)).  Weber's electrical type-a
+  junction ("charges add at common voltage") is the electrical node an element's pin joins: in the
+  stack it is the bus that connects all ``elec_a`` (and all ``elec_b``) in parallel.
+
+Signs (Weber's convention, DESIGN §4): the force at a port acts on the element; positive
+direction from ``mech_a`` (base) to ``mech_b`` (tip), so a pull on the tip is a positive tension.
+Positive voltage ``e_a − e_b`` extends the element (``k_P > 0``); a positive tension pushes
+positive charge ``k_P·T`` in at ``elec_a`` when the electrodes are shorted, and with open
+electrodes (``Q = 0``) gives ``U = −k_P·T/C_P``.
+
+``m = 0`` (literal) leaves the mass out (Weber Bild 11: the force passes straight through);
+``R = 0`` (literal) leaves the resistor out.
+
+``piezo_stack`` — Weber Bild 37/38: ``n`` ``piezo_element`` networks, mechanically in series (tip
+of element k on the base of element k+1: the same force, the extensions add) and electrically in
+parallel through two type-a junctions ``plus``/``minus`` (the same voltage, the charges add).
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+from multipole import ElementType, Network, Param, Quantity, register
+from multipole.errors import ModelError
+from multipole.primitives import CField, I, R, junction_a, junction_b
+
+_NAMES = ("k_P", "delta_P", "C_P", "m", "R")
+_S = {name: sp.Symbol(name) for name in _NAMES}
+
+
+def literal_zero(value) -> bool:
+    """True for a literal zero parameter (not for a scene parameter that happens to be zero)."""
+    return sp.sympify(value).is_zero is True
+
+
+def piezo_element(k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
+    """One piezo element (Weber Bild 36) with ports mech_a, mech_b, elec_a, elec_b.
+
+    ``k_P`` [m/V = C/N] piezo constant, ``delta_P`` [m/N] compliance at constant voltage (shorted
+    electrodes), ``C_P`` [F] capacitance at constant force (mechanically free; blocked it is
+    ``C_P − k_P²/delta_P``), ``m`` [kg] moving mass at the tip,
+    ``R_`` [Ω] series resistance of the electrodes and leads.
+    """
+    S = sp.Matrix([[_S["delta_P"], _S["k_P"]], [_S["k_P"], _S["C_P"]]])
+    resistive = not literal_zero(R_)
+    loop_ports = ["a", "b", "field"] + (["res"] if resistive else [])
+    children = {
+        "gap": junction_a(["base", "tip", "field"], "translational", [1, -1, 1]),
+        "field": CField(S, ["translational", "electrical"]),
+        "loop": junction_b(loop_ports, "electrical", [1, -1] + [-1] * (len(loop_ports) - 2)),
+    }
+    connections = [["gap.field", "field.p1"], ["loop.field", "field.p2"]]
+    ports = {"mech_a": "gap.base", "mech_b": "gap.tip", "elec_a": "loop.a", "elec_b": "loop.b"}
+    params = {"k_P": k_P, "delta_P": delta_P, "C_P": C_P}
+    if not literal_zero(m):
+        children["tip"] = junction_b(["active", "out", "mass"], "translational", [1, 1, 1])
+        children["mass"] = I(J=_S["m"], dom="translational")
+        connections += [["gap.tip", "tip.active"], ["tip.mass", "mass.p"]]
+        ports["mech_b"] = "tip.out"
+        params["m"] = m
+    if resistive:
+        children["res"] = R(r=_S["R"], dom="electrical")
+        connections.append(["loop.res", "res.p"])
+        params["R"] = R_
+    quantities = {
+        "stroke": Quantity(lambda V: V.x("field.q1"), "m", "extension s1 - s0 of the element (Weber Δs*)"),
+        "force": Quantity(lambda V: V.e("field.p1"), "N", "tension in the active part, (-F0) of Weber (53)"),
+        "charge": Quantity(lambda V: V.x("field.q2"), "C", "charge that entered at elec_a (Weber ΔQ*)"),
+        "field_voltage": Quantity(lambda V: V.e("field.p2"), "V", "voltage U on the piezo capacitance"),
+        "voltage": Quantity(lambda V: V.e("loop.a") - V.e("loop.b"), "V", "terminal voltage e_a - e_b"),
+        "current": Quantity(lambda V: V.f("loop.a"), "A", "current into elec_a"),
+    }
+    return Network("piezo_element", children, connections, ports, params=params, quantities=quantities,
+                   doc="Weber Bild 36: piezo element with tip mass and electrode resistance")
+
+
+def piezo_stack(n, k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
+    """``n`` piezo elements, mechanically in series and electrically in parallel (Weber Bild 38).
+
+    The parameters are those of one element (see :func:`piezo_element`); the stack has the same
+    ports.  Expected behaviour: stroke ``n·k_P·U``, charge ``n·k_P·F``, capacitance ``n·C_P``,
+    compliance ``n·delta_P``.
+    """
+    count = sp.sympify(n)
+    if count.free_symbols or not count.is_number or count != int(count) or int(count) < 1:
+        raise ModelError("bad_value", f"piezo_stack: n must be a whole number >= 1, got {n}",
+                         "give the number of elements as a literal integer, e.g. n: 20")
+    count = int(count)
+    names = [f"e{k + 1}" for k in range(count)]
+    params = {"k_P": k_P, "delta_P": delta_P, "C_P": C_P, "m": m, "R": R_}
+    # literal zeros go to the elements as zeros (so they leave the mass/resistor out)
+    inner = {k: (0 if literal_zero(v) else _S[k]) for k, v in params.items()}
+    children = {name: piezo_element(inner["k_P"], inner["delta_P"], inner["C_P"], inner["m"], inner["R"])
+                for name in names}
+    children["plus"] = junction_a(["ext"] + names, "electrical")
+    children["minus"] = junction_a(["ext"] + names, "electrical")
+    connections = [[f"{a}.mech_b", f"{b}.mech_a"] for a, b in zip(names, names[1:])]
+    connections += [[f"plus.{name}", f"{name}.elec_a"] for name in names]
+    connections += [[f"minus.{name}", f"{name}.elec_b"] for name in names]
+    ports = {"mech_a": f"{names[0]}.mech_a", "mech_b": f"{names[-1]}.mech_b",
+             "elec_a": "plus.ext", "elec_b": "minus.ext"}
+
+    def total(name):
+        return lambda V: sp.Add(*[V.quantity(f"{el}.{name}") for el in names])
+
+    quantities = {
+        "stroke": Quantity(total("stroke"), "m", "extension of the stack, the sum of the elements' strokes"),
+        "force": Quantity(lambda V: V.quantity(f"{names[0]}.force"), "N",
+                          "tension in the base element, (-F0) at mech_a"),
+        "charge": Quantity(total("charge"), "C", "charge that entered at elec_a (sum over the elements)"),
+        "voltage": Quantity(lambda V: V.e("plus.ext") - V.e("minus.ext"), "V", "terminal voltage e_a - e_b"),
+        "current": Quantity(lambda V: V.f("plus.ext"), "A", "current into elec_a"),
+    }
+    # Without electrode resistance the parallel fields share one voltage and their charges go into
+    # derivative causality; without masses the series fields share one force and their extensions
+    # do.  Name the states to keep integrated (the other field state of each element is the natural
+    # one to resolve), which also steers round the analyser's tie-breaking (see docs/weber-piezo-motor.md).
+    keep = "q1" if literal_zero(R_) else "q2" if literal_zero(m) else None
+    prefer = [f"{name}.field.{keep}" for name in names] if keep else []
+    return Network("piezo_stack", children, connections, ports,
+                   params={k: v for k, v in params.items() if not literal_zero(v)}, quantities=quantities,
+                   doc="Weber Bild 38: piezo stack translator", prefer_state=prefer)
+
+
+_PORTS = {"mech_a": "translational: base (Weber port 0); force on the element, velocity of the base",
+          "mech_b": "translational: tip (Weber port 1); the moving mass m moves with it",
+          "elec_a": "electrical: positive electrode (current into it charges the element)",
+          "elec_b": "electrical: negative electrode"}
+_PARAMS = [
+    Param("k_P", "m/V = C/N", "piezo constant: extension per volt = charge per newton (reciprocal)"),
+    Param("delta_P", "m/N", "compliance at constant voltage (shorted); open: delta_P - k_P^2/C_P"),
+    Param("C_P", "F", "capacitance at constant force (free); blocked: C_P - k_P^2/delta_P"),
+    Param("m", "kg", "moving mass at the tip (literal 0: massless, Weber Bild 11)", 0.0),
+    Param("R", "Ohm", "series resistance of electrodes and leads (literal 0: ideal)", 0.0),
+]
+_QTY = {"stroke": "m: extension s1 - s0 (Weber Δs*)",
+        "force": "N: tension in the active part, (-F0) of Weber (53); = force at mech_b in statics",
+        "charge": "C: charge that entered at elec_a (Weber ΔQ*)",
+        "voltage": "V: terminal voltage e(elec_a) - e(elec_b)",
+        "current": "A: current into elec_a"}
+
+register(ElementType(
+    "piezo_element",
+    lambda k_P, delta_P, C_P, m, R: piezo_element(k_P, delta_P, C_P, m, R),
+    "piezo element (Weber (50)-(55)): s1 = s0 + k_P*U + delta_P*T, Q = k_P*T + C_P*U, "
+    "(-F0) = F1 - m*a1, U_terminal = U + R*I",
+    _PORTS, _PARAMS,
+    {**_QTY, "field_voltage": "V: voltage U on the piezo capacitance (terminal voltage minus R*I)"}))
+register(ElementType(
+    "piezo_stack",
+    lambda n, k_P, delta_P, C_P, m, R: piezo_stack(n, k_P, delta_P, C_P, m, R),
+    "piezo stack translator (Weber Bild 38): n piezo_elements, mechanically in series, "
+    "electrically in parallel",
+    _PORTS, [Param("n", "-", "number of elements (whole number)")] +
+    [Param(p.name, p.unit, p.doc + " (of one element)", p.default) for p in _PARAMS],
+    _QTY))

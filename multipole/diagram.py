@@ -22,6 +22,7 @@ Geometry is in drawing units (one unit is :data:`SCALE` inches in the figure).
 from __future__ import annotations
 
 import textwrap
+from fractions import Fraction
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,6 +31,8 @@ import sympy as sp
 
 from .causality import Analysis, _alias_pair
 from .errors import MultipoleError
+from .network import var
+from .primitives import T
 
 #: inches per drawing unit
 SCALE = 0.8
@@ -39,8 +42,11 @@ EFFORT = "#303030"      #: colour of effort signals (Kräfte)
 CONFLICT = "#d62728"    #: elements named by an error diagnostic, undetermined variables
 DERIVATIVE = "#7b3fa0"  #: storage in derivative causality
 
-#: primitives drawn as one block between the two rows (cross-couplings, sources, taps)
+#: primitives drawn as one block between the two rows (cross-couplings, sources, taps); any other
+#: one-port kind an element library defines is drawn there too
 MIDDLE_KINDS = ("I", "C", "R", "Se", "Sf", "Tap", "CField")
+#: primitives drawn with a block in each row
+ROW_KINDS = ("TF", "MTF", "GY", "junction_a", "junction_b")
 
 _DY = 1.0            # flow row -> middle -> effort row spacing
 _LANE = 2 * _DY + 1.55
@@ -57,7 +63,8 @@ class Block:
 
     ``kind``: ``sum`` (Σ), ``dot`` (branching point), ``ratio`` (TF/MTF), ``gyrator``, ``storage``
     (I, C, C-field), ``resistance`` (R), ``source`` (Se, Sf), ``tap``, ``terminal`` (an unconnected
-    port).  ``row``: ``"f"`` (flow row), ``"e"`` (effort row) or ``"x"`` (between the rows).
+    port), ``other`` (a one-port kind defined by an element library).
+    ``row``: ``"f"`` (flow row), ``"e"`` (effort row) or ``"x"`` (between the rows).
     ``owner`` is the primitive path or the node name whose equations the block stands for;
     ``element`` the top-level element it belongs to (``""`` for a node joining elements).
     ``identity`` marks blocks that only pass a value on (dots, two-port sums).
@@ -127,6 +134,9 @@ class Diagram:
     extent: tuple           # xmin, xmax, ymin, ymax in drawing units
     has_derivative: bool = False
     has_conflict: bool = False
+    captions: tuple = ("", "")   # what the flows and efforts are, for the row captions
+    lane_h: float = _LANE        # vertical distance between stacked lanes
+    subgroups: list = field(default_factory=list)   # frames of networks nested inside an element
 
     def arrow_of(self, variable: str) -> Arrow:
         """The arrow of a port variable (``"rotor.j.a.e"``)."""
@@ -144,22 +154,32 @@ class Diagram:
 # text helpers
 
 def _num(value: float) -> str:
+    """Compact number: integers plain, thirds and sevenths as fractions, else 3 digits."""
     value = float(value)
     if value == int(value) and abs(value) < 1e6:
         return str(int(value))
+    frac = Fraction(value).limit_denominator(12)
+    if frac.denominator > 1 and len(repr(value)) > 8 and abs(float(frac) - value) <= 1e-12 * abs(value):
+        return f"{frac.numerator}/{frac.denominator}"
     return f"{value:.3g}"
 
 
-def _expr_text(expr, limit: int = 18) -> str:
+def _expr_text(expr, limit: int = 22) -> str:
     """Short readable form of a sympy expression: round floats, cut long ones."""
-    expr = sp.sympify(expr)
+    expr = sp.sympify(expr).replace(sp.Heaviside, lambda *a: sp.Function("step")(a[0]))
     if expr.is_number:
         try:
             return _num(float(expr))
         except TypeError:
             pass
-    floats = {f: (sp.Integer(int(f)) if f == int(f) else sp.Float(f, 3)) for f in expr.atoms(sp.Float)}
-    text = str(expr.xreplace(floats)).replace("**", "^")
+    floats = {}
+    for f in expr.atoms(sp.Float):
+        r = float(f"{float(f):.4g}")
+        floats[f] = sp.Integer(int(r)) if r == int(r) else sp.Float(r, 4)
+    return _short(str(expr.xreplace(floats)).replace("**", "^"), limit)
+
+
+def _short(text: str, limit: int) -> str:
     return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
@@ -257,11 +277,26 @@ class _Layout:
             else:
                 self.inner_nodes.append(n)
         self.top_set = {n.name for n in self.top_nodes}
+        self.node_by_name = {n.name: n for n in flat.nodes}
+        self.track: dict = {}               # connection -> inner track index (outside the rows)
+        self.n_tracks: dict = {}            # element -> number of inner tracks
+
+    def subnet(self, item):
+        """The innermost network a primitive (or an inner node) belongs to."""
+        path = item
+        if item in self.node_by_name:
+            ports = [q.rsplit(".", 1)[0] for q in self.node_by_name[item].ports]
+            path = ports[0]
+            while not all(q == path or q.startswith(path + ".") for q in ports) and "." in path:
+                path = path.rsplit(".", 1)[0]
+        while path not in self.flat.elements and "." in path:
+            path = path.rsplit(".", 1)[0]
+        return path
 
     # -- element order: columns and lanes ---------------------------------------------------------
     def order_elements(self):
-        """Depth-first along the drive chain from the first source; elements reached through the
-        same node share a column and are stacked in lanes."""
+        """Columns along the drive chain from the first driving source (breadth first); elements
+        reached through the same node share a column and are stacked in lanes."""
         nodes_of = defaultdict(list)
         for n in self.top_nodes:
             for p in n.ports:
@@ -278,17 +313,39 @@ class _Layout:
             used[c].add(lane)
             self.col[el], self.lane[el] = c, lane
 
-        def visit(el):
-            for n in nodes_of[el]:
+        n_ports = defaultdict(int)
+        for pp in self.flat.external_ports:
+            n_ports[pp.split(".", 1)[0]] += 1
+
+        def chain_first(n):
+            """Nodes that lead on to multi-port elements before those that only attach grounds."""
+            new = {self.flat.element_of(p) for p in n.ports} - set(self.col)
+            return 0 if any(n_ports[e] > 1 for e in new) else 1
+
+        def expand(el, nodes, queue):
+            for n in sorted(nodes, key=chain_first):
                 if n.name in self.node_parent:
                     continue
-                self.node_parent[n.name] = el
-                new = [e for e in dict.fromkeys(self.flat.element_of(p) for p in n.ports) if e not in self.col]
-                for e in new:
-                    place(e, self.col[el] + 1, self.lane[el])
-                    self.parent_node[e] = n
-                for e in new:
-                    visit(e)
+                els = list(dict.fromkeys(self.flat.element_of(p) for p in n.ports))
+                parent = min((e for e in els if e in self.col), key=lambda e: (self.col[e], e != el))
+                self.node_parent[n.name] = parent          # the node sits after its leftmost element
+                for e in els:
+                    if e not in self.col:
+                        place(e, self.col[parent] + 1, self.lane[parent])
+                        self.parent_node[e] = n
+                        queue.append((e, nodes_of[e]))
+
+        def visit(root):
+            """Breadth first, so parallel paths run side by side; the root's other ports come
+            last, so a ring through the source is drawn as a chain with one return wire."""
+            first, rest = nodes_of[root][:1], nodes_of[root][1:]
+            queue = [(root, first)]
+            while queue:
+                el, nodes = queue.pop(0)
+                expand(el, nodes, queue)
+                if not queue and rest:
+                    queue.append((root, rest))
+                    rest = []
 
         def is_drive(el):
             for path, prim in self.prims.items():
@@ -316,7 +373,7 @@ class _Layout:
         host_of = {}
         for p in prims:
             prim = self.prims[p]
-            if prim.kind not in MIDDLE_KINDS or len(prim.ports) != 1:
+            if not self.is_middle(p) or len(prim.ports) != 1:
                 continue
             n = self.node_of.get(f"{p}.p")
             if n is None or n.name in self.top_set or n.origin == "termination":
@@ -326,7 +383,7 @@ class _Layout:
                 host_of[p] = n.name
             else:
                 q = others[0].rsplit(".", 1)[0]
-                if self.prims[q].kind not in MIDDLE_KINDS:
+                if not self.is_middle(q):
                     host_of[p] = q
             if p in host_of:
                 hang[host_of[p]].append(p)
@@ -370,7 +427,10 @@ class _Layout:
                 order.append(t)
             for h in hang.get(it, []):
                 order.extend(t for t in term_of.get(h, []) if t not in order)
-            for nb in adj[it]:
+            # within the same sub-network first, along the row primitives before cross-couplings
+            here = self.subnet(it)
+            for nb in sorted(adj[it], key=lambda x: (self.subnet(x) != here,
+                                                     x in self.prims and self.is_middle(x))):
                 dfs(nb)
 
         if entry is not None:
@@ -379,41 +439,52 @@ class _Layout:
             dfs(it)
         for ts in term_of.values():
             order.extend(t for t in ts if t not in order)
+        first_seen = {}                     # keep each nested network's items together
+        for it in order:
+            first_seen.setdefault(self.subnet(it), len(first_seen))
+        order.sort(key=lambda it: first_seen[self.subnet(it)])
         return order, hang
 
     # -- blocks -------------------------------------------------------------------------------------
     def _block(self, bid, kind, label, row, owner, element, note="", identity=False, w=None, h=None):
         default = {"sum": (0.42, 0.38), "dot": (0.0, 0.0), "ratio": (0.62, 0.38), "gyrator": (0.62, 0.38)}
         dw, dh = default.get(kind, (0.98, 0.58))
-        text_w = max(_text_width(label, 9), _text_width(note, 7.5)) + 0.22
-        b = Block(bid, kind, label, row, owner, element, note, w=max(w or dw, text_w if kind not in ("dot",)
-                                                                   else 0.0), h=h or dh, identity=identity)
+        text_w = 0.0 if kind == "dot" else max(_text_width(label, 9), _text_width(note, 7.5)) + 0.22
+        b = Block(bid, kind, label, row, owner, element, note, w=max(w or dw, text_w), h=h or dh, identity=identity)
         b.conflict = element in self.red
         self.blocks[bid] = b
         return b
 
-    def _param_value(self, path, expr):
-        """Numeric value of a parameter expression of primitive ``path`` (None if not numeric)."""
-        expr = sp.sympify(expr)
-        subs = {}
-        parts = path.split(".")
-        for s in expr.free_symbols:
-            for k in range(len(parts), -1, -1):
-                name = ".".join(parts[:k] + [s.name])
-                hit = next((g for g in self.values if g.name == name), None)
-                if hit is not None:
-                    subs[s] = self.values[hit]
-                    break
-        try:
-            return float(expr.xreplace(subs))
-        except (TypeError, ValueError):
-            return None
+    def _relation(self, path, natural):
+        """The flat equation of primitive ``path`` whose natural output is ``natural``."""
+        for eq in self.flat.equations:
+            if eq.owner == path and eq.natural is not None and eq.natural.name == natural:
+                return eq
+        return None
 
-    def _param_note(self, path, expr, default_name):
-        expr = sp.sympify(expr)
-        value = self._param_value(path, expr)
-        name = _expr_text(expr, 10) if expr.free_symbols else default_name
-        return f"{name} = {_num(value)}" if value is not None else f"{default_name} = {_expr_text(expr, 12)}"
+    def _coefficient_note(self, path, name):
+        """``"J = 0.002"``: the linear coefficient of an I (J), C (c) or R (r) as the flat equation
+        has it, named after its parameter symbol; ``None`` for a nonlinear law."""
+        state = {"I": "p", "C": "q"}.get(self.prims[path].kind)
+        out_var = f"{path}.p.f" if state == "p" else f"{path}.p.e"
+        eq = self._relation(path, out_var)
+        if eq is None:
+            return None
+        out = var(out_var) - eq.expr
+        x = var(f"{path}.{state}") if state else var(f"{path}.p.f")
+        slope = sp.diff(out, x)
+        if slope.has(x) or slope == 0:
+            return None
+        coef = 1 / slope if state == "p" else slope
+        return self._param_text(coef, name)
+
+    def _param_text(self, coef, name):
+        coef = sp.sympify(coef)
+        if coef.free_symbols and coef.free_symbols <= set(self.values):
+            value = float(coef.xreplace({s: sp.Float(self.values[s]) for s in coef.free_symbols}))
+            label = coef.name.rsplit(".", 1)[-1] if isinstance(coef, sp.Symbol) else name
+            return f"{label} = {_num(value)}"
+        return f"{name} = {_expr_text(coef, 12)}"
 
     def middle_block(self, path):
         prim = self.prims[path]
@@ -424,22 +495,24 @@ class _Layout:
         mark = "d/dt" if deriv else "∫"
         if k == "I":
             label = f"I  {mark}"
-            note = self._param_note(path, pr["J"], "J") if pr.get("J") is not None else "f = law(p)"
+            note = self._coefficient_note(path, "J") or "f = law(p)"
             kind = "storage"
         elif k == "C":
             label = f"C  {mark}"
-            note = self._param_note(path, pr["c"], "c") if pr.get("c") is not None else "e = law(q)"
+            note = self._coefficient_note(path, "c") or "e = law(q)"
             kind = "storage"
         elif k == "CField":
             label, note, kind = f"C-field  {mark}", f"{len(prim.ports)} ports", "storage"
         elif k == "R":
             label = "R"
-            note = self._param_note(path, pr["r"], "r") if pr.get("r") is not None else "e = law(f)"
+            note = self._coefficient_note(path, "r") or "e = law(f)"
             kind = "resistance"
         elif k in ("Se", "Sf"):
             label, note, kind = k, ("e" if k == "Se" else "f") + " = " + _expr_text(pr["value"]), "source"
-        else:
-            label, note, kind = f"{k}  ∫", "", "tap"
+        elif k == "Tap":
+            label, note, kind = "Tap  ∫", "", "tap"
+        else:                               # a kind an element library defines
+            label, note, kind = k, _short(prim.doc.split(":")[0] if prim.doc else "", 24), "other"
         b = self._block(f"{path}:x", kind, label, "x", path, el, note)
         b.derivative = deriv
         return b
@@ -458,9 +531,8 @@ class _Layout:
                             identity=dot or two)
             return
         if k == "TF":
-            ratio = sp.sympify(prim.params["ratio"])
-            ktxt = "k(q)" if any(s.name == "q" for s in ratio.free_symbols) else None
-            base = sp.Symbol(ktxt) if ktxt else ratio
+            ratio, moving = self._tf_ratio(path)
+            base = sp.Symbol(f"k({','.join(moving)})") if moving else ratio
             fa, fb = self.out.get(f"{path}.a.f"), self.out.get(f"{path}.b.f")
             ea, eb = self.out.get(f"{path}.a.e"), self.out.get(f"{path}.b.e")
             flow = 1 / base if fb and not fa else base
@@ -476,6 +548,24 @@ class _Layout:
         label = {"MTF": ("K(q)", "-Kᵀ")}.get(k, (k, k))
         self._block(f"{path}:f", "ratio", label[0], "f", path, el)
         self._block(f"{path}:e", "ratio", label[1], "e", path, el)
+
+    def _tf_ratio(self, path):
+        """Ratio k of a TF (``f_a = k*f_b``) from its flat equation, parameters by short name, and
+        the short names of the states it depends on (a modulated transformer)."""
+        fa, fb = var(f"{path}.a.f"), var(f"{path}.b.f")
+        for eq in self.flat.equations:
+            if eq.owner == path and eq.expr.has(fa) and eq.expr.has(fb):
+                k = -sp.diff(eq.expr, fb) / sp.diff(eq.expr, fa)
+                moving = sorted({v.name.rsplit(".", 1)[-1] for v in k.free_symbols
+                                 if v not in self.values and v != T})
+                subs = {}
+                for sym in k.free_symbols:
+                    if sym in self.values and "." in sym.name:
+                        subs[sym] = sp.Float(self.values[sym])     # element-local constants
+                    elif sym in self.values:
+                        subs[sym] = sp.Symbol(sym.name)            # scene parameters by name
+                return sp.simplify(k.xreplace(subs)), moving
+        return sp.Symbol("k"), []
 
     def node_blocks(self, node, element):
         common = node.domain.across
@@ -494,19 +584,23 @@ class _Layout:
 
     def block_id(self, path, row):
         """Block of primitive ``path`` that carries its variables of ``row``."""
-        return f"{path}:x" if self.prims[path].kind in MIDDLE_KINDS else f"{path}:{row}"
+        return f"{path}:x" if self.is_middle(path) else f"{path}:{row}"
+
+    def is_middle(self, path):
+        """True for primitives drawn between the rows (see :data:`MIDDLE_KINDS`)."""
+        prim = self.prims[path]
+        return prim.kind in MIDDLE_KINDS or (prim.kind not in ROW_KINDS and len(prim.ports) == 1)
 
     # -- main ---------------------------------------------------------------------------------------
     def build(self):
         self.order_elements()
-        nodes_by_name = {n.name: n for n in self.flat.nodes}
         # element contents and widths
-        self.items, self.item_x, self.widths = {}, {}, {}
+        self.items, self.widths = {}, {}
         for el in self.elements:
             order, hang = self.element_items(el)
             xs, x = {}, 0.25
             for it in order:
-                if it in self.prims and self.prims[it].kind in MIDDLE_KINDS:
+                if it in self.prims and self.is_middle(it):
                     b = self.middle_block(it)
                     w = max(_SUB, b.w + 0.3)
                 elif it in self.prims:
@@ -514,11 +608,11 @@ class _Layout:
                     hs = [self.middle_block(h) for h in hang.get(it, [])]
                     w = max(_SUB, sum(max(_HANG, hb.w + 0.2) for hb in hs),
                             self.blocks[f"{it}:f"].w + 0.4)
-                elif nodes_by_name[it].origin == "termination":
-                    b = self.terminal_block(nodes_by_name[it])
+                elif self.node_by_name[it].origin == "termination":
+                    b = self.terminal_block(self.node_by_name[it])
                     w = max(_SUB, b.w + 0.3)
                 else:
-                    self.node_blocks(nodes_by_name[it], el)
+                    self.node_blocks(self.node_by_name[it], el)
                     hs = [self.middle_block(h) for h in hang.get(it, [])]
                     w = max(_SUB, sum(max(_HANG, hb.w + 0.2) for hb in hs))
                 xs[it] = (x, w)
@@ -527,19 +621,63 @@ class _Layout:
             width = max(x + 0.25, _text_width(label, 9) + 0.4)
             self.items[el] = (order, hang, xs)
             self.widths[el] = width
+            self.inner_tracks(el, order)
         self.col_w = [max([self.widths[e] for e in self.elements if self.col[e] == c] or [1.0])
                       for c in range(self.n_cols)]
         self.plan_wires()
-        self.place(nodes_by_name)
+        self.pad = {el: 0.13 * max(0, n - 1) for el, n in self.n_tracks.items()}
+        extra = max(self.pad.values(), default=0.0)
+        self.lane_h = _LANE + 2 * extra
+        self.top_base = 0.8 + extra + 0.55
+        self.place()
         self.route()
+
+    def inner_tracks(self, el, order):
+        """Connections inside an element whose ends are not neighbours on the rows run over a
+        track outside the rows (above the flows, below the efforts); number them."""
+        pos = {it: k for k, it in enumerate(order)}
+        rows_at = [pos[it] for it in order if f"{it}:f" in self.blocks]
+        count = 0
+        for n in self.inner_nodes:
+            if self.flat.element_of(n.ports[0]) != el:
+                continue
+            prims = [q.rsplit(".", 1)[0] for q in n.ports]
+            if len(n.ports) == 2:
+                pairs = [(n.name, prims[0], prims[1])]
+            else:
+                pairs = [((n.name, q), n.name, pr) for q, pr in zip(n.ports, prims)]
+            for key, a, b in pairs:
+                if a not in pos or b not in pos:
+                    continue            # hanging under a junction: a short vertical wire
+                lo, hi = sorted((pos[a], pos[b]))
+                if any(lo < k < hi for k in rows_at):
+                    self.track[key] = count
+                    count += 1
+        self.n_tracks[el] = count
+
+    def blocked_track(self, el, prim, right):
+        """A track for a leg whose port block has other row blocks between it and the element's
+        edge toward the leg (the leg then runs outside the rows instead of through them)."""
+        order = self.items[el][0]
+        on_rows = [it for it in order if f"{it}:f" in self.blocks]
+        if prim not in on_rows:
+            return None
+        k = on_rows.index(prim)
+        if (right and k == len(on_rows) - 1) or (not right and k == 0):
+            return None
+        key = ("leg", prim, right)
+        if key not in self.track:
+            self.track[key] = self.n_tracks[el]
+            self.n_tracks[el] += 1
+        return self.track[key]
 
     def group_label(self, el):
         typ = self.types.get(el) or self.flat.elements.get(el) or self.prims.get(el, None)
         typ = typ.kind if hasattr(typ, "kind") else typ
-        return f"{el}  ({typ})" if typ else el
+        return f"{el} ({typ})" if typ else el
 
     def y_row(self, lane, row):
-        y0 = -lane * _LANE
+        y0 = -lane * self.lane_h
         return {"f": y0, "x": y0 - _DY, "e": y0 - 2 * _DY}[row]
 
     # -- wiring between elements: which gap and which track ----------------------------------------
@@ -561,7 +699,8 @@ class _Layout:
                 right = g >= c
                 adjacent = (right and g == c) or (not right and g == c - 1)
                 for row in ("f", "e"):
-                    leg = {"node": n, "port": p, "row": row, "el": el, "right": right, "corridor": None}
+                    leg = {"node": n, "port": p, "row": row, "el": el, "right": right, "corridor": None,
+                           "track": self.blocked_track(el, p.rsplit(".", 1)[0], right) if adjacent else None}
                     if not adjacent:
                         chan_gap = c if right else c - 1
                         top = row == "f" and lane == 0 and self.lane[el] == 0
@@ -574,7 +713,7 @@ class _Layout:
             keys = [("node", n.name, "f"), ("node", n.name, "e")] if stagger else [("node", n.name, "fe")]
             self.gap_tracks[g][:0] = keys
 
-    def place(self, nodes_by_name):
+    def place(self):
         # columns
         self.col_x, x = [], 0.0
         self.gap_x = {}
@@ -588,13 +727,27 @@ class _Layout:
             x += width
         self.x_max = x
         # element groups and blocks inside
-        self.groups = []
+        self.groups, self.subgroups = [], []
         for el in self.elements:
             order, hang, xs = self.items[el]
             x0, lane = self.col_x[self.col[el]], self.lane[el]
             yf, ye = self.y_row(lane, "f"), self.y_row(lane, "e")
-            self.groups.append(Group(el, self.group_label(el), x0, ye - 0.5, x0 + self.widths[el], yf + 0.8,
+            pad = self.pad[el]
+            self.groups.append(Group(el, self.group_label(el), x0, ye - 0.5 - pad, x0 + self.widths[el], yf + 0.8 + pad,
                                      el in self.red))
+            run = []                       # consecutive items of one nested network: a sub-frame
+            for it in order + [None]:
+                net = self.subnet(it) if it is not None else None
+                if run and net != run[0][0]:
+                    sub = run[0][0]
+                    if sub != el and sub.startswith(el + "."):
+                        left, right = xs[run[0][1]][0], sum(xs[run[-1][1]])
+                        self.subgroups.append(Group(sub, f"{sub[len(el) + 1:]} ({self.flat.elements[sub]})",
+                                                    x0 + left + 0.05, ye - 0.42, x0 + right - 0.05, yf + 0.42,
+                                                    el in self.red))
+                    run = []
+                if it is not None:
+                    run.append((net, it))
             for it in order:
                 xi, w = xs[it]
                 cx = x0 + xi + w / 2
@@ -614,13 +767,24 @@ class _Layout:
                     for row in ("f", "e"):
                         b = self.blocks[f"{it}:{row}"]
                         b.w = span if b.kind == "dot" else max(b.w, span + 0.42)
-        # nodes joining elements
+        # nodes joining elements; where several share a gap in one lane, the multi-port ones move
+        # off the row line (between the rows) so straight wires through the gap miss their blocks
         self.node_pt = {}
+        sharing = defaultdict(list)
+        for n in self.top_nodes:
+            sharing[self.node_gap[n.name]].append(n)
+        shift = {}
+        for group in sharing.values():
+            multi = [n for n in group if len(n.ports) >= 3]
+            movers = multi if len(multi) < len(group) else multi[1:]
+            for j, n in enumerate(movers, 1):
+                shift[n.name] = 0.4 * j
         for n in self.top_nodes:
             g, lane = self.node_gap[n.name]
             xf = self.gap_x.get(("node", n.name, "f"), self.gap_x.get(("node", n.name, "fe")))
             xe = self.gap_x.get(("node", n.name, "e"), xf)
-            self.node_pt[n.name] = {"f": (xf, self.y_row(lane, "f")), "e": (xe, self.y_row(lane, "e"))}
+            dy = shift.get(n.name, 0.0)
+            self.node_pt[n.name] = {"f": (xf, self.y_row(lane, "f") - dy), "e": (xe, self.y_row(lane, "e") + dy)}
             if len(n.ports) >= 3:
                 self.node_blocks(n, "")
                 for row in ("f", "e"):
@@ -673,9 +837,9 @@ class _Layout:
         """One arrow per port variable, with its drawn route."""
         legs = {(leg["port"], leg["row"]): leg for leg in self.legs}
         corridor = {"top": 0, "bottom": 0}
-        top_y = 1.35
-        bottom_y = self.y_row(self.n_lanes - 1, "e") - 0.85
-        self.corridor_y = []
+        top_y = self.top_base
+        bottom_y = self.y_row(self.n_lanes - 1, "e") - 0.85 - self.pad_max()
+        self.assign_slots()
         for pp in self.flat.port_domains:
             prim = pp.rsplit(".", 1)[0]
             n = self.node_of[pp]
@@ -695,13 +859,17 @@ class _Layout:
                 arrow = Arrow(v, row, src, dst, inside is not None, colour if inside is not None else CONFLICT)
                 if n.name in self.top_set:
                     pts = self.leg_route(legs[(pp, row)], own, row, corridor, top_y, bottom_y)  # node -> own
-                    arrow.points = pts[::-1] if inside else pts
+                    arrow.points = pts[::-1] if inside or inside is None else pts
                     # a two-port connection is one wire: the head sits on the receiving leg only
                     arrow.head = len(n.ports) >= 3 or not inside
                 else:
-                    a = self.pin(own, self.centre(other), row)
-                    b = self.pin(other, self.centre(own), row)
-                    pts = self.path_between(a, b, self.y_row(self.lane_of_block(own), row))
+                    key = n.name if len(n.ports) == 2 else (n.name, pp)
+                    if key in self.track:
+                        pts = self.track_route(own, other, row, self.track[key])
+                    else:
+                        a = self.pin(own, self.centre(other), row)
+                        b = self.pin(other, self.centre(own), row)
+                        pts = self.path_between(a, b, self.y_row(self.lane_of_block(own), row))
                     arrow.points = pts if src == own else pts[::-1]
                     arrow.drawn = n.origin == "termination" or len(n.ports) != 2 or pp == n.ports[0]
                 if not arrow.determined:
@@ -710,42 +878,97 @@ class _Layout:
         self.top_y = top_y + _CORRIDOR * corridor["top"]
         self.bottom_y = bottom_y - _CORRIDOR * corridor["bottom"]
 
+    def pad_max(self):
+        return max(self.pad.values(), default=0.0)
+
+    def track_route(self, own, other, row, k):
+        """Route over inner track ``k``: out of the row away from the cross-couplings and back."""
+        up = row == "f"
+        a, b = self.blocks[own], self.blocks[other]
+        yc = self.y_row(self.lane_of_block(own), row) + (0.28 + 0.13 * k) * (1 if up else -1)
+
+        def end(blk):
+            return (blk.x, blk.y) if blk.kind == "dot" else (blk.x, blk.y + (blk.h / 2 if up else -blk.h / 2))
+        return [end(a), (a.x, yc), (b.x, yc), end(b)]
+
     def lane_of_block(self, bid):
         b = self.blocks[bid]
-        return round(-(b.y - {"f": 0, "x": -_DY, "e": -2 * _DY}[b.row]) / _LANE)
+        return round(-(b.y - {"f": 0, "x": -_DY, "e": -2 * _DY}[b.row]) / self.lane_h)
+
+    def assign_slots(self):
+        """Legs that leave the same row block on the same side run beside each other: the first
+        (the one staying in its lane) on the row line, the others shifted toward their node."""
+        shared = defaultdict(list)
+        for leg in self.legs:
+            own = self.block_id(leg["port"].rsplit(".", 1)[0], leg["row"])
+            leg["slot"] = 0
+            if self.blocks[own].row == "x" or leg["corridor"] is not None or leg["track"] is not None:
+                continue
+            nx_, ny = self.node_pt[leg["node"].name][leg["row"]]
+            shared[(own, nx_ < self.blocks[own].x)].append(leg)
+        for legs in shared.values():
+            legs.sort(key=lambda lg: abs(self.node_pt[lg["node"].name][lg["row"]][1]
+                                         - self.y_row(self.lane[lg["el"]], lg["row"])))
+            for k, leg in enumerate(legs):
+                leg["slot"] = k
+        for leg in self.legs:
+            n, row = leg["node"], leg["row"]
+            row_y = self.y_row(self.lane[leg["el"]], row)
+            if len(n.ports) == 2:           # toward the partner's lane
+                other = next(p for p in n.ports if p != leg["port"])
+                ty = self.y_row(self.lane[self.flat.element_of(other)], row)
+            else:
+                ty = self.node_pt[n.name][row][1]
+            leg["dir"] = 1 if ty > row_y + 1e-9 else -1
+            if leg["slot"] and len(n.ports) == 2 and abs(self.node_pt[n.name][row][1] - row_y) < 1e-9:
+                box = self.blocks[self.block_id(leg["port"].rsplit(".", 1)[0], row)].kind != "dot"
+                x, _ = self.node_pt[n.name][row]    # the invisible node point moves onto the shifted run
+                self.node_pt[n.name][row] = (x, row_y + (0.11 if box else 0.2) * leg["slot"] * leg["dir"])
 
     def leg_route(self, leg, own, row, corridor, top_y, bottom_y):
         """Route from the node point of a connection between elements to the port's block."""
         n = leg["node"]
         nx_, ny = self.node_pt[n.name][row]
-        el = leg["el"]
-        row_y = self.y_row(self.lane[el], row)
-        if len(n.ports) >= 3:
-            start = self.pin(f"{n.name}:{row}", (self.blocks[own].x, row_y), row)
-        else:
-            start = (nx_, ny, False)
-        toward = (nx_, row_y)
+        row_y = self.y_row(self.lane[leg["el"]], row)
+        b = self.blocks[own]
+        box = b.row != "x" and b.kind != "dot"
+        if leg["track"] is not None:       # out of the row away from the cross-couplings, then along
+            up = row == "f"
+            yt = row_y + (0.28 + 0.13 * leg["track"]) * (1 if up else -1)
+            if len(n.ports) >= 3:
+                sx, sy, _ = self.pin(f"{n.name}:{row}", (nx_, yt), row)
+            else:
+                sx, sy = nx_, ny
+            end = (b.x, b.y) if b.kind == "dot" else (b.x, b.y + (b.h / 2 if up else -b.h / 2))
+            return _simplify([(sx, sy), (nx_, yt), (b.x, yt), end])
         if leg["corridor"] is not None:
-            side, gap = leg["corridor"]
-            xc = self.gap_x[("chan", leg["port"], row)]
-            toward = (xc, row_y)
-        end = self.pin(own, toward, row)
-        pts = [(start[0], start[1])]
-        if start[2]:                       # leaves a node block vertically
-            pts.append((start[0], start[1] + (0.3 if row_y > ny else -0.3)))
-            pts.append((nx_, pts[-1][1]))
-        if leg["corridor"] is not None:
-            side, gap = leg["corridor"]
+            side, _gap = leg["corridor"]
             k = corridor[side]
             corridor[side] += 1
-            yc = top_y + _CORRIDOR * k if side == "top" else bottom_y - _CORRIDOR * k
-            pts += [(nx_, yc), (xc, yc), (xc, row_y)]
+            up = side == "top"
+            yc = top_y + _CORRIDOR * k if up else bottom_y - _CORRIDOR * k
+            xv = self.gap_x[("chan", leg["port"], row)]      # vertical beside the element
+            y_run = row_y + (0.11 if box else 0.22) * (1 if up else -1)
+            mid = [(nx_, yc), (xv, yc), (xv, y_run)]
+            node_aim = (nx_, yc)
         else:
-            pts.append((nx_, row_y))
-        ex, ey, ev = end
-        if ev:
-            pts.append((ex, row_y))
-        pts.append((ex, ey))
+            step = 0.11 if box else 0.2
+            y_run = row_y + step * leg["slot"] * leg["dir"]
+            xv = nx_
+            mid = [(nx_, y_run)]
+            node_aim = (b.x, row_y) if abs(row_y - ny) < 1e-9 and leg["slot"] == 0 else (nx_, y_run)
+        if len(n.ports) >= 3:
+            sx, sy, _ = self.pin(f"{n.name}:{row}", node_aim, row)
+        else:
+            sx, sy = nx_, ny
+        pts = [(sx, sy)] + mid
+        ex, ey, vertical = self.pin(own, (xv, row_y), row)
+        if box:
+            pts.append((ex, y_run))                  # into the side of the box, at the run's level
+        elif b.kind == "dot":
+            pts += [(b.x, y_run), (b.x, b.y)]
+        else:                                       # a block between the rows: up or down into it
+            pts += [(ex, y_run), (ex, ey)]
         return _simplify(pts)
 
 
@@ -771,9 +994,9 @@ def _messages(an: Analysis) -> list:
     for d in an.errors:
         text = f"error[{d.code}] {d.message}"
         if d.path:
-            text += "   loop: " + " → ".join(d.path)
+            text += " — loop: " + " → ".join(d.path)
         if d.fix:
-            text += f"   fix: {d.fix}"
+            text += f" — fix: {d.fix}"
         lines.append((CONFLICT, text))
     for d in an.diagnostics:
         if d.code == "derivative_causality":
@@ -789,14 +1012,24 @@ def layout(analysis: Analysis, types: dict | None = None, title: str = "", subti
     """
     lay = _Layout(analysis, types)
     lay.build()
-    for b in lay.blocks.values():
-        b.derivative = b.derivative or False
     ys = [b.y for b in lay.blocks.values()] + [g.y0 for g in lay.groups] + [g.y1 for g in lay.groups]
     ys += [p[1] for a in lay.arrows for p in a.points]
     xs = [p[0] for a in lay.arrows for p in a.points] + [g.x1 for g in lay.groups] + [0.0]
     extent = (min(xs) - 0.2, max(xs) + 0.3, min(ys) - 0.3, max(ys) + 0.25)
     return Diagram(title, subtitle, lay.blocks, lay.arrows, lay.groups, _messages(analysis), lay.n_lanes,
-                   extent, bool(lay.demoted), bool(analysis.errors))
+                   extent, bool(lay.demoted), bool(analysis.errors), _captions(analysis), lay.lane_h,
+                   lay.subgroups)
+
+
+def _captions(an: Analysis) -> tuple:
+    """Row captions: Weber's words for mechanics, the quantities' names otherwise."""
+    doms = {d.name: d for d in an.flat.port_domains.values()}
+    if set(doms) <= {"rotational", "translational"}:
+        return "(Bewegungen)", "(Kräfte)"
+    if len(doms) == 1:
+        d = next(iter(doms.values()))
+        return f"({d.flow})", f"({d.effort})"
+    return "", ""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -805,10 +1038,10 @@ def layout(analysis: Analysis, types: dict | None = None, title: str = "", subti
 def render(diagram: Diagram, path) -> None:
     """Draw ``diagram`` into ``path`` (``.png`` or ``.svg``) with matplotlib's Agg backend."""
     import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
-    from matplotlib.patches import FancyBboxPatch, Patch, Rectangle
+    from matplotlib.patches import FancyBboxPatch, Patch
 
     xmin, xmax, ymin, ymax = diagram.extent
     margin_l = 1.45                      # row captions [in]
@@ -816,7 +1049,7 @@ def render(diagram: Diagram, path) -> None:
     chars = int(width_in * 72 / (9.0 * 0.56))
     msg_lines = []
     for colour, text in diagram.messages:
-        for k, line in enumerate(textwrap.wrap(text, chars, subsequent_indent="    ")):
+        for line in textwrap.wrap(text, chars, subsequent_indent="    ", break_on_hyphens=False):
             msg_lines.append((colour, line))
     title_lines = [diagram.title] + textwrap.wrap(diagram.subtitle, chars + 10)
     head_in = 0.3 + 0.22 * len(title_lines)
@@ -824,7 +1057,8 @@ def render(diagram: Diagram, path) -> None:
     msg_in = 0.2 + 0.19 * len(msg_lines) if msg_lines else 0.0
     diag_in = (ymax - ymin) * SCALE
     height_in = head_in + diag_in + legend_in + msg_in + 0.15
-    fig = plt.figure(figsize=(width_in, height_in))
+    fig = Figure(figsize=(width_in, height_in))     # Agg canvas; pyplot's global state untouched
+    FigureCanvasAgg(fig)
     ax = fig.add_axes([margin_l / width_in, (legend_in + msg_in + 0.1) / height_in,
                        (xmax - xmin) * SCALE / width_in, diag_in / height_in])
     ax.set_xlim(xmin, xmax)
@@ -836,10 +1070,11 @@ def render(diagram: Diagram, path) -> None:
                  weight="bold" if k == 0 else "normal", va="baseline", color="#222222")
 
     # row captions per lane
+    flows, efforts = diagram.captions
     for lane in range(diagram.lanes):
-        y0 = -lane * _LANE
-        for dy, text, colour in ((0, "flows\n(Bewegungen)", FLOW), (-_DY, "cross-\ncouplings", "#777777"),
-                                 (-2 * _DY, "efforts\n(Kräfte)", EFFORT)):
+        y0 = -lane * diagram.lane_h
+        for dy, text, colour in ((0, f"flows\n{flows}", FLOW), (-_DY, "cross-\ncouplings", "#777777"),
+                                 (-2 * _DY, f"efforts\n{efforts}", EFFORT)):
             ax.annotate(text, (xmin, y0 + dy), xytext=(-8, 0), textcoords="offset points", ha="right",
                         va="center", fontsize=8, color=colour, annotation_clip=False)
 
@@ -851,6 +1086,13 @@ def render(diagram: Diagram, path) -> None:
                                     lw=1.4 if g.conflict else 0.8, zorder=0))
         ax.text(g.x0 + 0.16, g.y1 - 0.1, g.label, fontsize=9, va="top", ha="left",
                 color=CONFLICT if g.conflict else "#222222", weight="bold", zorder=5)
+
+    for g in diagram.subgroups:
+        ax.add_patch(FancyBboxPatch((g.x0, g.y0), g.x1 - g.x0, g.y1 - g.y0, boxstyle="round,pad=0,rounding_size=0.08",
+                                    fc="none", ec=CONFLICT if g.conflict else "#9a9a9a", lw=0.8, ls=(0, (3, 2)),
+                                    zorder=1))
+        ax.text(g.x0 + 0.06, g.y0 + 0.04, g.label, fontsize=7, va="bottom", ha="left", color="#666666", zorder=7,
+                bbox=dict(boxstyle="square,pad=0.1", fc="#f6f6f3", ec="none"))
 
     for a in diagram.arrows:
         if not a.drawn or len(a.points) < 2:
@@ -868,19 +1110,32 @@ def render(diagram: Diagram, path) -> None:
                         arrowprops=dict(arrowstyle="-|>,head_length=0.55,head_width=0.28", color=colour, lw=1.1,
                                         shrinkA=0, shrinkB=shrink), zorder=3)
         if not a.determined:
-            mx, my = a.points[len(a.points) // 2 - (1 if len(a.points) > 2 else 0)]
-            nx_, ny = a.points[len(a.points) // 2]
-            ax.text((mx + nx_) / 2, (my + ny) / 2 + 0.1, "?", color=CONFLICT, fontsize=9, weight="bold",
-                    ha="center", va="bottom", zorder=6)
+            segs = list(zip(a.points[:-1], a.points[1:]))
+            (x0, y0), (x1, y1) = max(segs, key=lambda s: abs(s[1][0] - s[0][0]) + abs(s[1][1] - s[0][1]))
+            vertical = abs(x1 - x0) < 1e-9
+            ax.text((x0 + x1) / 2 + (0.07 if vertical else 0), (y0 + y1) / 2 + (0 if vertical else 0.06), "?",
+                    color=CONFLICT, fontsize=10, weight="bold", ha="left" if vertical else "center",
+                    va="center" if vertical else "bottom", zorder=6)
+
+    for b in diagram.blocks.values():               # a gyrator couples each row to the other
+        if b.kind == "gyrator" and b.row == "f":
+            other = diagram.blocks.get(b.id[:-2] + ":e")
+            if other is not None:
+                ax.plot([b.x, other.x], [b.y, other.y], color="#888888", lw=0.9, ls=(0, (2, 2)), zorder=1)
+                ax.text(b.x + 0.06, (b.y + other.y) / 2, "e ↔ f", fontsize=7.5, color="#555555", ha="left",
+                        va="center", zorder=6)
 
     for b in diagram.blocks.values():
         edge = CONFLICT if b.conflict else DERIVATIVE if b.derivative else "#222222"
         text_colour = CONFLICT if b.conflict else DERIVATIVE if b.derivative else "#111111"
         if b.kind == "dot":
             colour = CONFLICT if b.conflict else (FLOW if b.row == "f" else EFFORT)
-            if b.w > 0:
+            if b.w > 0:                             # a bus: a branching point at every wire on it
                 ax.plot([b.x - b.w / 2, b.x + b.w / 2], [b.y, b.y], color=colour, lw=2.2, zorder=4)
-                for x in (b.x - b.w / 2, b.x + b.w / 2):
+                taps = {round(p[0], 6) for a in diagram.arrows if b.id in (a.source, a.target)
+                        for p in (a.points[0], a.points[-1])
+                        if abs(p[1] - b.y) < 1e-6 and abs(p[0] - b.x) <= b.w / 2 + 1e-6}
+                for x in taps | {b.x - b.w / 2, b.x + b.w / 2}:
                     ax.plot([x], [b.y], "o", ms=6.5, color=colour, zorder=5)
             else:
                 ax.plot([b.x], [b.y], "o", ms=6.5, color=colour, zorder=5)
@@ -897,13 +1152,15 @@ def render(diagram: Diagram, path) -> None:
             size = 11 if b.kind == "sum" else 9
             ax.text(b.x, b.y, b.label, fontsize=size, ha="center", va="center", color=text_colour, zorder=6)
 
+    flow_label = f"flow{' ' + flows if flows else ''}: arrow leaves the side that computes it"
     handles = [
-        Line2D([], [], color=FLOW, lw=1.3, marker=">", ms=6, label="flow (Bewegung): arrow leaves the side that computes it"),
-        Line2D([], [], color=EFFORT, lw=1.3, marker=">", ms=6, label="effort (Kraft)"),
+        Line2D([], [], color=FLOW, lw=1.3, marker=">", ms=6, label=flow_label),
+        Line2D([], [], color=EFFORT, lw=1.3, marker=">", ms=6, label=f"effort{' ' + efforts if efforts else ''}"),
         Line2D([], [], ls="", marker=r"$\Sigma$", ms=9, color="#222222", label="Σ: summation (computes one)"),
         Line2D([], [], ls="", marker="o", ms=6.5, color="#222222", label="branching point: common variable"),
         Patch(fc="white", ec="#222222", label="ratio / cross-coupling I, R, C (∫ integral causality)"),
-        Patch(fc="#f7f0fb", ec=DERIVATIVE, ls="--", lw=1.5, label="derivative causality (d/dt): effective inertia"),
+        Patch(fc="#f7f0fb", ec=DERIVATIVE, ls="--", lw=1.5,
+              label="derivative causality (d/dt): resolved into effective storage"),
     ]
     if diagram.has_conflict:
         handles.append(Patch(fc="#fdeaea", ec=CONFLICT, lw=1.4, label="conflict (error diagnostic)"))
@@ -918,8 +1175,10 @@ def render(diagram: Diagram, path) -> None:
         fig.text(0.5 / width_in, (msg_in - 0.15 - 0.19 * k) / height_in, line, fontsize=9, color=colour,
                  va="top", family="DejaVu Sans")
     fmt = Path(path).suffix.lower().lstrip(".")
-    fig.savefig(path, format=fmt, dpi=130 if width_in < 25 else 90)
-    plt.close(fig)
+    # SVG: text stays searchable text; fixed ids and no date, so a regenerated figure is identical
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "multipole"}):
+        fig.savefig(path, format=fmt, dpi=130 if width_in < 25 else 90,
+                    metadata={"Date": None} if fmt == "svg" else None)
 
 
 # ---------------------------------------------------------------------------------------------

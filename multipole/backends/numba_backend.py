@@ -6,22 +6,27 @@ How a run goes:
 
 1. *Translation* — the :class:`~multipole.equations.Equations` are printed as Python source by a
    subclass of the kernel's code writer (:class:`multipole.codegen._Writer`): the right-hand side,
-   the forward-mode Jacobian, the outputs and the switching functions, each as a function
-   ``fun(t, x, out, w)`` that writes into ``out`` (no allocation on the hot path); numeric linear
-   loops are solved by a small LU, nonlinear loops by a damped Newton iteration warm-started from
-   the work array ``w``.  Thin entry points hand these functions to the generic compiled loops of
-   :mod:`multipole.backends.numba_kernels` (Dormand–Prince 5(4) or Radau IIA(5), events, output
-   sampling).
+   the forward-mode Jacobian, the outputs and the switching functions, each as a numba ``cfunc``
+   ``void fun(double t, double *x, double *out, double *w)`` that writes into ``out``; numeric
+   linear loops are solved by a small LU, nonlinear loops by a damped Newton iteration
+   warm-started from the work array ``w``.  The source is remembered in this process by the
+   structure of the equations.
 2. *Compilation* — the source is written to ``$MULTIPOLE_CACHE/numba/m_<hash>.py`` (default
-   ``~/.cache/multipole``), keyed by a hash of the source, the kernel source and the numba
-   version, and compiled by numba with ``cache=True``: a later run of the same model, in this or
-   another process, loads the machine code from the ``__pycache__`` next to that file.
-3. *Run* — the compiled loop integrates from 0 to ``t_end`` and fills the ``dt_out`` grid.
+   ``~/.cache/multipole``; the hash covers the source, the kernels, numba and Python) and
+   imported; numba compiles the functions with ``cache=True``, so a later run of the same model,
+   in this or another process, loads their machine code from the ``__pycache__`` next to that
+   file.  The integrator loops of :mod:`multipole.backends.numba_kernels` do not depend on the
+   model (they call it through function addresses): they are compiled once per installation and
+   kept in numba's cache.
+3. *Run* — the compiled loop integrates from 0 to ``t_end``, fills the ``dt_out`` grid from the
+   dense output and restarts at the zero crossings of the switching functions; the outputs are
+   evaluated on the grid, also compiled.
 
 ``Result.stats`` keeps ``translate_time`` (sympy to source), ``compile_time`` (translation plus
 numba compilation or cache load), ``run_time`` (the compiled integration and output sampling,
 also reported as ``wall_time``) in seconds, ``compile_cached`` and the work counters ``nfev``,
-``njev``, ``nlu``, ``steps``, ``rejected``, ``segments``, ``newton_iterations``, ``newton_solves``.
+``njev``, ``nlu``, ``steps``, ``rejected``, ``segments``, ``newton_iterations``, ``newton_solves``
+(algebraic loops) and ``collocation_iterations`` (Radau's simplified Newton iterations).
 
 Solvers: ``RK45`` (Dormand–Prince 5(4), explicit), ``Radau`` (Radau IIA order 5, implicit, analytic
 Jacobian) and ``auto`` (the stiffness test of :func:`multipole.simulate.choose_solver`).  ``DOP853``
@@ -38,15 +43,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 import sympy as sp
+from sympy.printing.precedence import PRECEDENCE
 
 from .. import codegen
 from ..simulate import Result, SimulationError, _Progress, choose_solver
 from . import numba_kernels as K
 from . import register_backend
-
-import numba
 
 #: explicit and implicit method of this backend, and what the other scipy names run as
 METHODS = {"RK45": "RK45", "Radau": "Radau", "DOP853": "RK45", "RK23": "RK45", "BDF": "Radau", "LSODA": "Radau"}
@@ -57,7 +62,16 @@ PROGRESS_CHUNK = 200
 
 
 class _Printer(codegen._Printer):
-    """The kernel's printer, with ``sign`` parenthesised and ``Piecewise`` always total."""
+    """The kernel's printer, with ``sign`` parenthesised, ``Piecewise`` always total and every
+    number a float (numba types a list mixing ints and floats as an error)."""
+
+    def _print_Integer(self, e):
+        return repr(float(e))
+
+    def _print_Pow(self, e, rational=False):
+        if e.exp.is_Integer and e.exp > 0:        # x**3, not x**3.0: numba multiplies
+            return f"{self.parenthesize(e.base, PRECEDENCE['Pow'])}**{int(e.exp)}"
+        return super()._print_Pow(e, rational=rational)
 
     def _print_sign(self, e):
         a = self._print(e.args[0])
@@ -72,16 +86,84 @@ class _Printer(codegen._Printer):
         return "(" + "".join(parts) + "math.nan)"
 
 
+_SIG = "types.void(types.float64, types.voidptr, types.voidptr, types.voidptr)"
+
+#: damped Newton iteration for one algebraic loop (the rule of :func:`multipole.codegen.newton`),
+#: generated per loop so that it calls the loop's residual function directly; written with loops
+#: and the kernels' LU because numba compiles numpy's array functions slowly
+_NEWTON = '''@njit(cache=True)
+def _newton{k}(w, a):
+    """Damped Newton for the loop {k}, warm-started from w[{off}:{end}]; NaN if it fails."""
+    z = np.empty({n})
+    z_new = np.empty({n})
+    dz = np.empty({n})
+    F = np.empty({n})
+    J = np.empty(({n}, {n}))
+    piv = np.empty({n}, dtype=np.int64)
+    for i in range({n}):
+        z[i] = w[{off} + i]
+    _blk{k}(z, a, F, J)
+    norm = _k.norm2(F)
+    for it in range(1, 61):
+        for i in range({n}):
+            dz[i] = F[i]
+        _k.lu_factor(J, piv)
+        _k.lu_solve(J, piv, dz)
+        lam = 1.0
+        while True:
+            for i in range({n}):
+                z_new[i] = z[i] - lam * dz[i]
+            _blk{k}(z_new, a, F, J)
+            norm_new = _k.norm2(F)
+            if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
+                break
+            lam *= 0.5
+        step = 0.0
+        big = 0.0
+        for i in range({n}):
+            step = max(step, abs(lam * dz[i]))
+            z[i] = z_new[i]
+            big = max(big, abs(z[i]))
+        norm = norm_new
+        if step <= 1e-12 * (1.0 + big) or norm == 0.0:
+            w[0] += it
+            w[1] += 1
+            for i in range({n}):
+                w[{off} + i] = z[i]
+            return z
+    w[2] += 1
+    for i in range({n}):
+        z[i] = math.nan
+    return z
+'''
+#: w[0] Newton iterations, w[1] Newton solves, w[2] Newton failures, then the loops' guesses
+_W_HEAD = 3
+
+
 class _Writer(codegen._Writer):
-    """Prints the model as numba functions ``fun(t, x, out, w)``."""
+    """Prints the model as numba ``cfunc`` functions ``void fun(t, *x, *out, *w)``."""
 
     def __init__(self, eq):
         super().__init__(eq)
         self.printer = _Printer(self.names)
-        self.blocks_src: list[str] = []      # module-level residual functions of Newton loops
-        self.work = 2                        # w[0]: Newton iterations, w[1]: Newton solves
+        self.blocks_src: list[str] = []      # module-level residual and Newton functions of loops
+        self.work = _W_HEAD
         self.offsets: dict = {}              # Newton loop (block index) -> offset of its guess in w
         self.deps: dict = {}                 # Newton loop -> symbols its residuals read
+
+    def grad(self, expr, exclude, D) -> dict:
+        """As the kernel writer's, but in a fixed order of the symbols, so that the generated
+        source (and with it the cache key) is the same in every process."""
+        acc: dict = {}
+        for w in sorted(expr.free_symbols - set(exclude), key=lambda s: s.name):
+            if w in self.index:
+                acc.setdefault(self.index[w], []).append(self.P(codegen._diff(expr, w)))
+            elif D.get(w):
+                d = codegen._diff(expr, w).xreplace(self.pvals)
+                for j, name in D[w].items():
+                    acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
+                                                 else f"({self.P(d)})*{name}")
+        return {j: " + ".join(t) for j, t in sorted(acc.items())}
 
     def prologue(self, units, extra=()) -> list:
         used = set(extra).union(*(u.deps for u in units)) if units else set(extra)
@@ -108,49 +190,70 @@ class _Writer(codegen._Writer):
         return self.newton_lines(u, b)
 
     def newton_lines(self, u, b) -> list:
-        """A module-level residual function for the loop and the call of the Newton kernel."""
+        """Residual and Newton functions for the loop (once) and their call."""
         N, P = self.names, self.P
         zs = u.variables
         n = len(zs)
         k = u.block
         if k not in self.offsets:
-            self.offsets[k] = self.work
+            off = self.offsets[k] = self.work
             self.work += n
             res = [sp.sympify(r).xreplace(self.pvals) for r in b.residuals]
             free = set().union(*(r.free_symbols for r in res)) - set(zs)
-            deps = sorted(free, key=lambda s: N[s])
+            self.deps[k] = deps = sorted(free, key=lambda s: N[s])
             Jz = sp.Matrix(res).jacobian(zs)
-            src = [f"@njit(cache=True)", f"def _blk{k}(_z, _a):",
+            src = ["@njit(cache=True)", f"def _blk{k}(_z, _a, _F, _J):",
                    f'    """Residuals of the algebraic loop for {", ".join(map(str, zs))} and their Jacobian."""']
-            if deps:
-                src.append(f"    {', '.join(N[d] for d in deps)}, = _a")
+            src += [f"    {N[d]} = _a[{i}]" for i, d in enumerate(deps)]
             src += [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
-            src += [f"    _F = np.empty({n})", f"    _J = np.empty(({n}, {n}))"]
             src += [f"    _F[{i}] = {P(r)}" for i, r in enumerate(res)]
             src += [f"    _J[{i}, {j}] = {P(Jz[i, j])}" for i in range(n) for j in range(n)]
-            src += ["    return _F, _J", ""]
+            src += ["", _NEWTON.format(k=k, off=off, end=off + n, n=n)]
             self.blocks_src += src
-            self.deps[k] = deps
         deps = self.deps[k]
-        off = self.offsets[k]
-        args = "(" + ", ".join(f"float({N[d]})" for d in deps) + ("," if len(deps) == 1 else "") + ")" \
-            if deps else "(0.0,)"
-        return [f"    _z = _k.newton(_blk{k}, w, {off}, {n}, {args})"] + \
-            [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
+        lines = [f"    _a = np.empty({max(len(deps), 1)})"] + [f"    _a[{i}] = {N[d]}" for i, d in enumerate(deps)]
+        return lines + [f"    _z = _newton{k}(w, _a)"] + [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
 
-    def function(self, name, doc, needed, values) -> list:
-        """``def name(t, x, out, w)`` computing ``values`` (codes) into ``out``."""
+    def function(self, name, doc, needed, values, shape) -> list:
+        """A cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``."""
         units = codegen._closure(self.units, needed)
-        return [f"@njit(cache=True)", f"def {name}(t, x, out, w):", f'    """{doc}"""'] + \
-            self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)] + ["    return", ""]
+        return [f"@cfunc({_SIG}, cache=True)", f"def {name}(t, xp, outp, wp):", f'    """{doc}"""',
+                f"    x = carray(xp, ({len(self.states)},), np.float64)",
+                f"    out = carray(outp, {shape}, np.float64)", "    w = carray(wp, (N_WORK,), np.float64)"] + \
+            self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)] + [""]
 
     def jacobian_function(self) -> list:
-        """The kernel writer's forward-mode Jacobian, wrapped to write into ``out``."""
+        """The kernel writer's forward-mode Jacobian, writing into ``out`` instead of a new array
+        (numba compiles slice assignment and ``np.zeros`` slowly)."""
+        n = len(self.states)
         lines = self.jacobian()
-        body = [ln for ln in lines[1:] if "_stats[" not in ln]
-        return ["@njit(cache=True)", "def _jac_alloc(t, x, w):"] + body + \
-            ["@njit(cache=True)", "def jac(t, x, out, w):", '    """Jacobian d(rhs)/dx into out."""',
-             "    out[:, :] = _jac_alloc(t, x, w)", ""]
+        alloc = f"    _J = np.zeros(({n}, {n}))"
+        if lines[0] != "def jac(t, x):" or alloc not in lines or "    return _J" not in lines:
+            raise CodegenMismatch("the kernel's Jacobian code has an unexpected shape")
+        loops = {}          # the kernel's "_Jz = np.array([[...]])" of each loop -> element assignments
+        for u in codegen._closure(self.units, self.eq.derivatives):
+            if u.kind != "assign":
+                Jz = sp.Matrix(self.eq.blocks[u.block].residuals).jacobian(u.variables)
+                n_z = len(u.variables)
+                rows = ", ".join("[" + ", ".join(self.P(Jz[i, j]) for j in range(n_z)) + "]" for i in range(n_z))
+                loops[f"    _Jz = np.array([{rows}])"] = [f"    _Jz = np.empty(({n_z}, {n_z}))"] + \
+                    [f"    _Jz[{i}, {j}] = {self.P(Jz[i, j])}" for i in range(n_z) for j in range(n_z)]
+        body = []
+        for ln in lines[2:]:
+            if ln in loops:
+                body += loops[ln]
+            elif ln == alloc:
+                body += ["    _J = out", f"    for _i in range({n}):", f"        for _j in range({n}):",
+                         "            _J[_i, _j] = 0.0"]
+            elif "_stats[" not in ln and ln != "    return _J":
+                body.append(ln.replace("-np.linalg.solve(_Jz, _G)", "_k.neg_solve(_Jz, _G)"))
+        return [f"@cfunc({_SIG}, cache=True)", "def jac(t, xp, outp, wp):", '    """Jacobian d(rhs)/dx into out."""',
+                f"    x = carray(xp, ({n},), np.float64)", f"    out = carray(outp, ({n}, {n}), np.float64)",
+                "    w = carray(wp, (N_WORK,), np.float64)"] + body + [""]
+
+
+class CodegenMismatch(RuntimeError):
+    """The kernel's code writer changed in a way this backend does not understand (-> numpy)."""
 
 
 def switch_list(writer) -> list:
@@ -171,29 +274,48 @@ def generate(eq, outputs) -> tuple[str, list]:
     """Source of the numba module for ``eq`` and the text of its switching functions."""
     w = _Writer(eq)
     N, P = w.names, w.P
+    n = len(eq.states)
     ders = [N[d] if d in N else P(d) for d in eq.derivatives]
-    body = w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives, ders)
+    body = w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives, ders,
+                      f"({n},)")
     out_exprs = [eq.output(o) for o in outputs]
     needed = set().union(*(e.free_symbols for e in out_exprs)) if out_exprs else set()
-    body += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed, [P(e) for e in out_exprs])
+    body += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed, [P(e) for e in out_exprs],
+                       f"({len(outputs)},)")
     sw = switch_list(w)
     needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
-    body += w.function("switches", "Switching functions: a sign change is an event.", needed, [P(s) for s in sw])
+    body += w.function("switches", "Switching functions: a sign change is an event.", needed, [P(s) for s in sw],
+                       f"({len(sw)},)")
     body += w.jacobian_function()
-    entry = []
-    for name, step, order, implicit in (("explicit", "dp_step", "DP_ORDER", False),
-                                        ("implicit", "radau_step", "RA_ORDER", True)):
-        entry += ["@njit(cache=True)",
-                  f"def integrate_{name}(fs, iw, x, f, grid, X, g_sign, ev_t, ev_k, Q, y_old, J, LUr, pr, LUc, pc, w,"
-                  " max_steps):",
-                  f"    _k.integrate(rhs, jac, switches, _k.{step}, _k.{order}, {implicit}, fs, iw, x, f, grid, X,"
-                  " g_sign, ev_t, ev_k, Q, y_old, J, LUr, pr, LUc, pc, w, max_steps)", ""]
-    entry += ["@njit(cache=True)", "def sample(w, grid, X, Y):", "    _k.sample(outputs, w, grid, X, Y)", ""]
     head = [f'"""numba model of {eq.name!r}, generated by multipole.backends.numba_backend: do not edit."""',
-            f"# kernels {_kernel_digest()}", "import math", "", "import numpy as np", "from numba import njit", "",
-            "from multipole.backends import numba_kernels as _k", "",
-            f"N_WORK = {w.work}", ""]
-    return "\n".join(head + w.blocks_src + body + entry) + "\n", [str(s) for s in sw]
+            f"# kernels {_kernel_digest()}", "import math", "", "import numpy as np",
+            "from numba import carray, cfunc, njit, types", "",
+            "from multipole.backends import numba_kernels as _k", "", f"N_WORK = {w.work}", ""]
+    return "\n".join(head + w.blocks_src + body) + "\n", [str(s) for s in sw]
+
+
+_SOURCES: dict = {}
+
+
+def _structure(eq, outputs) -> tuple:
+    """Everything the generated source depends on, as a hashable tuple of sympy objects (hashing it
+    costs about 0.1 ms where printing the source costs tens of ms)."""
+    def frozen(m):
+        return m.as_immutable() if m is not None else None
+    blocks = tuple((b.kind, tuple(b.variables), tuple(b.solution or ()), tuple(b.residuals), frozen(b.matrix),
+                    frozen(b.rhs)) for b in eq.blocks)
+    return (eq.name, tuple(s.symbol for s in eq.states), tuple(eq.derivatives), tuple(eq.inputs.items()),
+            tuple(eq.params.items()), blocks, tuple(outputs), tuple(eq.output(o) for o in outputs))
+
+
+def translate(eq, outputs) -> tuple[str, list]:
+    """:func:`generate`, remembered for the structure of ``eq`` within this process."""
+    key = _structure(eq, outputs)
+    if key not in _SOURCES:
+        if len(_SOURCES) > 256:
+            _SOURCES.clear()
+        _SOURCES[key] = generate(eq, outputs)
+    return _SOURCES[key]
 
 
 # -- compilation and cache ---------------------------------------------------------------------------
@@ -209,7 +331,8 @@ def cache_dir() -> Path:
 
 
 def load(source: str):
-    """Import the generated module (written once per source hash); numba compiles lazily."""
+    """Import the generated module (written once per source hash): numba compiles its cfuncs, or
+    loads them from its cache, as the module is imported."""
     key = hashlib.sha256(source.encode()).hexdigest()[:24]
     if key in _LOADED:
         return _LOADED[key]
@@ -259,14 +382,24 @@ class _Work:
                 self.y_old, self.J, self.LUr, self.pr, self.LUc, self.pc, self.w, max_steps)
 
 
-def _compile(module, method: str, n: int, n_switches: int) -> bool:
-    """Compile (or load from numba's cache) the entry points used by ``method``; True if cached."""
-    work = _Work(n, n_switches, module.N_WORK, np.zeros(1), np.zeros(n), 1.0, 1e-6, 1e-9, np.inf)
-    entry = getattr(module, "integrate_explicit" if method == "RK45" else "integrate_implicit")
-    entry(*work.args(0))                  # max_steps = 0: types only, nothing integrated
-    module.sample(work.w, work.grid, work.X, np.zeros((1, 0)))
-    hits = sum(sum(f.stats.cache_hits.values()) for f in (entry, module.sample))
-    return hits > 0
+def _cfuncs(module) -> tuple:
+    """Addresses of the model's right-hand side, Jacobian and switching functions."""
+    return module.rhs.address, module.jac.address, module.switches.address
+
+
+def _compile(module, n: int, n_switches: int) -> bool:
+    """Load the integrator loops and the model (compiling what numba's cache lacks) by calling them
+    once without integrating; True if nothing had to be compiled."""
+    if getattr(module, "_warm", False):
+        return True
+    work = _Work(n, n_switches, module.N_WORK, np.zeros(0), np.zeros(n), 1.0, 1e-6, 1e-9, np.inf)
+    misses = sum(sum(f.stats.cache_misses.values()) for f in (K.integrate, K.sample))
+    # an empty output grid: the calls only load or compile the code, they evaluate nothing
+    K.integrate(*_cfuncs(module), False, *work.args(0))
+    K.sample(module.outputs.address, work.w, work.grid, work.X, np.zeros((0, 0)))
+    misses = sum(sum(f.stats.cache_misses.values()) for f in (K.integrate, K.sample)) - misses
+    module._warm = True
+    return misses == 0 and all(f.cache_hits for f in (module.rhs, module.jac, module.switches, module.outputs))
 
 
 def output_grid(t_end: float, dt_out: float | None) -> np.ndarray:
@@ -289,8 +422,9 @@ class _JacobianView:
         self.module, self.x0, self.w = module, np.asarray(x0, dtype=float), np.zeros(n_work)
 
     def jac(self, t, x):
+        x = np.ascontiguousarray(x, dtype=float)
         out = np.zeros((len(x), len(x)))
-        self.module.jac(float(t), np.asarray(x, dtype=float), out, self.w)
+        self.module.jac.ctypes(float(t), x.ctypes.data, out.ctypes.data, self.w.ctypes.data)
         return out
 
 
@@ -312,22 +446,22 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
                               f"use auto or one of {', '.join(METHODS)}")
     outputs = list(outputs)
     start = time.perf_counter()
-    source, switch_text = generate(equations, outputs)
-    translate = time.perf_counter() - start
+    source, switch_text = translate(equations, outputs)
+    translate_time = time.perf_counter() - start
     n = len(equations.states)
     x0 = np.array(equations.initial_values(), dtype=float)
     try:
         module = load(source)
         method, reason = _method(module, solver, x0, t_end, rtol)
-        cached = _compile(module, method, n, len(switch_text))
-    except (numba.core.errors.NumbaError, OSError) as exc:
+        cached = _compile(module, n, len(switch_text))
+    except Exception as exc:       # numba raises NumbaError, but also internal AssertionErrors
         return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
     compile_time = time.perf_counter() - start
 
     grid = output_grid(t_end, dt_out)
     rtol = max(rtol, 100 * np.finfo(float).eps)
     work = _Work(n, len(switch_text), module.N_WORK, grid, x0, t_end, rtol, atol, max_step)
-    entry = module.integrate_explicit if method == "RK45" else module.integrate_implicit
+    funcs = _cfuncs(module) + (method == "Radau",)
     if progress is None:
         progress = sys.stderr.isatty()
     bar = _Progress(t_end, progress)
@@ -336,20 +470,23 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     if n:
         try:
             while work.iw[K.I_STATUS] == K.RUNNING:
-                entry(*work.args(chunk))
+                K.integrate(*funcs, *work.args(chunk))
                 bar.update(work.fs[K.F_T])
         except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
             raise SimulationError("step_failed", f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}") from None
         status = int(work.iw[K.I_STATUS])
         if status in _STATUS:
             code, msg, fix = _STATUS[status]
+            if work.w[2]:
+                msg += f" (Newton's method failed {int(work.w[2])} times in an algebraic loop)"
             raise SimulationError(code, f"{method} (numba) stopped at t = {work.fs[K.F_T]:.6g} s: {msg}", fix)
     else:
         work.X[:] = np.zeros((grid.size, 0))
     bar.close()
+    newton = {"newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1])}   # before the outputs
     Y = np.zeros((grid.size, len(outputs)))
     if outputs:
-        module.sample(work.w, grid, work.X, Y)
+        K.sample(module.outputs.address, work.w, grid, work.X, Y)
     run_time = time.perf_counter() - begin
     if not np.all(np.isfinite(work.X)):
         code, msg, fix = _STATUS[K.NOT_FINITE]
@@ -357,13 +494,13 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     iw = work.iw
     stats = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
              "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),
-             "newton_iterations": int(work.w[0]) if module.N_WORK > 2 else 0,
-             "newton_solves": int(work.w[1]) if module.N_WORK > 2 else 0,
-             "translate_time": translate, "compile_time": compile_time, "compile_cached": cached,
+             **newton, "collocation_iterations": int(iw[K.I_NEWTON_IT]),
+             "translate_time": translate_time, "compile_time": compile_time, "compile_cached": cached,
              "run_time": run_time, "wall_time": run_time, "backend": "numba"}
     events = [(float(work.ev_t[i]), switch_text[int(work.ev_k[i])]) for i in range(int(iw[K.I_NEV]))]
     out = {name: Y[:, k].copy() for k, name in enumerate(outputs)}
-    return Result(grid, out, work.X, list(equations.state_names), method, reason, stats, events)
+    units = {o: getattr(equations, "units", {}).get(o, "") for o in outputs}
+    return Result(grid, out, work.X, list(equations.state_names), method, reason, stats, events, units=units)
 
 
 def _method(module, solver, x0, t_end, rtol) -> tuple[str, str]:

@@ -1,0 +1,724 @@
+"""``multipole bench``: speed against error (DESIGN §10).
+
+For every benchmark scene the bench runs each solver over a ladder of tolerances and records the
+error against a reference, the wall time (median of repeats) and the work counters.  It writes
+
+* ``bench.csv`` — one row per (scene, backend, solver, rtol): errors, wall time, nfev, njev, nlu,
+  steps, rejected steps, Newton iterations, energy drift, status and message;
+* ``side_by_side.csv`` — generated model against a hand-written numpy right-hand side of the same
+  equations (per call and whole run, same solver), and naive ``solve_ivp`` defaults against ``auto``;
+* ``bench_<scene>.png`` — work-precision figure (error against wall time and against nfev);
+* ``summary.md`` — which solver to pick for which scene and why.
+
+Reference of a scene: the ``reference`` mapping of its netlist::
+
+    reference:
+      kind: closed_form           # or: tight
+      output: load.omega          # the output compared (default: the first output)
+      expression: "9.4 - exp(-0.9*t)*..."   # closed_form only: a formula of t and the scene's parameters
+      energy: "0.5*J*flywheel.omega**2 + ..."  # optional: a conserved quantity of outputs and parameters
+      t_end: 2.0                  # optional: horizon of the bench (default: simulate.t_end)
+
+``closed_form`` formulas go through :func:`multipole.expressions.parse_expression` (the netlist
+whitelist; never ``eval``).  ``tight`` (and scenes without a reference) use the solution at
+``rtol = 1e-13``; its own error is estimated as its distance to the solution at ``rtol = 1e-12``
+and stated next to every result.
+
+Errors are relative to the output's scale: ``err_final = |y(T) - y_ref(T)| / max|y_ref|`` and
+``err_max = max_t |y(t) - y_ref(t)| / max|y_ref|`` over the output grid.  Wall time is the
+integration time reported by the simulator (compilation excluded, the output grid included).
+"""
+from __future__ import annotations
+
+import csv
+import math
+import statistics
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+from . import pipeline
+from .errors import MultipoleError
+from .expressions import parse_expression
+from .netlist import Scene, load
+from .network import flatten
+from .primitives import T
+from .simulate import IMPLICIT, SOLVERS, choose_solver, simulate
+
+SWEEP_SOLVERS = ["RK45", "DOP853", "Radau", "BDF", "LSODA", "GL4", "auto"]
+TOLERANCES = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
+QUICK_TOLERANCES = [1e-3, 1e-6, 1e-9]
+EXPLICIT_RK = {"RK45", "RK23", "DOP853"}
+CSV_FIELDS = ["scene", "backend", "solver", "chosen", "rtol", "atol", "status", "err_final", "err_max",
+              "ref_error", "energy_drift", "wall_s", "repeats", "nfev", "njev", "nlu", "steps", "rejected",
+              "newton_iterations", "events", "message"]
+
+
+# -------------------------------------------------------------------------------------------------
+# stability bound of explicit Runge–Kutta methods
+
+def rk_stability_radius(method: str, angle: float) -> float:
+    """Largest ``r`` with ``|R(r·e^{iθ})| <= 1`` on the ray from 0 at angle ``θ`` (π: negative real axis).
+
+    ``R(z) = 1 + z bᵀ(I - zA)⁻¹·1`` is the stability function of scipy's tableau of ``method``.
+    """
+    cls = SOLVERS[method]
+    s = cls.n_stages
+    A = np.zeros((s, s))
+    A[:, :cls.A.shape[1]] = cls.A
+    b, one = np.asarray(cls.B, dtype=float), np.ones(s)
+
+    def amp(r):
+        z = r * np.exp(1j * angle)
+        return abs(1 + z * b @ np.linalg.solve(np.eye(s) - z * A, one))
+    rs = np.linspace(1e-3, 10.0, 4000)
+    ok = np.array([amp(r) <= 1 + 1e-12 for r in rs])
+    if not ok[0]:
+        return 0.0
+    return float(rs[np.argmin(ok)] if not ok.all() else rs[-1])
+
+
+def explicit_stability_bound(eigenvalues, method: str, t_end: float) -> dict:
+    """Fewest steps and evaluations an explicit method needs to stay stable over ``t_end`` [s].
+
+    Every eigenvalue λ of the Jacobian with a clearly negative real part must satisfy
+    ``h·|λ| <= r(arg λ)`` (:func:`rk_stability_radius`); the tightest gives ``h_max`` and
+    ``steps >= t_end/h_max``, ``nfev >= stages·steps``.  A lower bound: accuracy may need more.
+    """
+    lam = np.asarray(eigenvalues, dtype=complex)
+    lam = lam[(lam.real < -0.1 * np.abs(lam)) & (np.abs(lam) > 0)]
+    if lam.size == 0:
+        return {"h_max": math.inf, "steps": 0, "nfev": 0}
+    h_max = min(rk_stability_radius(method, float(np.angle(z))) / abs(z) for z in lam)
+    steps = int(math.ceil(t_end / h_max))
+    stages = SOLVERS[method].n_stages
+    return {"h_max": h_max, "steps": steps, "nfev": steps * stages}
+
+
+# -------------------------------------------------------------------------------------------------
+# references
+
+@dataclass
+class Reference:
+    """What a scene's runs are compared with."""
+
+    kind: str
+    output: str
+    t_end: float
+    dt_out: float
+    error: float                       # estimated relative error of the reference itself
+    note: str
+    energy: object = None              # callable(t, outputs dict) -> array, or None
+    scale: float = 1.0
+    formula: object = None             # closed form: callable(t, {}) -> array
+    grid: np.ndarray | None = None     # tight: the output grid and the values on it
+    values: np.ndarray | None = None
+
+    def at(self, t) -> np.ndarray:
+        """Reference values on the output grid ``t`` of a run."""
+        if self.formula is not None:
+            return self.formula(np.asarray(t, dtype=float), {})
+        if len(t) != len(self.grid) or np.max(np.abs(np.asarray(t) - self.grid)) > 1e-9 * max(1.0, self.t_end):
+            raise MultipoleError("bench_grid", "the output grid of a run does not match the reference grid")
+        return self.values
+
+
+def _symbols(scene: Scene, outputs) -> tuple[dict, dict]:
+    """Expression symbols (parameters and output names) and the parameter values."""
+    values = {s.name: v for s, v in flatten(scene.network).param_values().items()}
+    symbols = {name: sp.Symbol(name) for name in list(values) + list(outputs)}
+    return symbols, values
+
+
+def _compile(text, scene: Scene, outputs, what: str):
+    """A parsed formula as a function of ``t`` and the outputs (a dict of arrays)."""
+    symbols, values = _symbols(scene, outputs)
+    symbols["t"] = T
+    expr = parse_expression(str(text), symbols, f"{scene.path} reference {what}")
+    expr = expr.xreplace({symbols[k]: sp.Float(v) for k, v in values.items() if symbols[k] in expr.free_symbols})
+    args = [T] + [symbols[o] for o in outputs]
+    fn = sp.lambdify(args, expr, modules=[{"Heaviside": lambda x, h=1.0: np.heaviside(x, h)}, "numpy"])
+
+    def evaluate(t, outs):
+        return np.broadcast_to(np.asarray(fn(t, *[outs[o] for o in outputs]), dtype=float), np.shape(t)).copy()
+    return evaluate
+
+
+def reference_spec(scene: Scene) -> dict:
+    """The scene's ``reference`` mapping, checked (kind, output, expression, energy, t_end)."""
+    spec = dict(scene.reference or {"kind": "tight"})
+    allowed = {"kind", "output", "expression", "energy", "t_end"}
+    unknown = set(spec) - allowed
+    if unknown:
+        raise MultipoleError("bad_reference", f"{scene.path}: unknown reference key {sorted(unknown)[0]!r}",
+                             f"allowed: {', '.join(sorted(allowed))}")
+    kind = spec.get("kind", "tight")
+    if kind not in ("closed_form", "tight"):
+        raise MultipoleError("bad_reference", f"{scene.path}: reference kind must be closed_form or tight, "
+                             f"got {kind!r}")
+    if kind == "closed_form" and "expression" not in spec:
+        raise MultipoleError("bad_reference", f"{scene.path}: a closed_form reference needs an expression")
+    outputs = scene.outputs
+    out = spec.get("output", outputs[0] if outputs else None)
+    if out is None or (outputs and out not in outputs):
+        raise MultipoleError("bad_reference", f"{scene.path}: reference output {out!r} is not among the "
+                             f"scene's outputs", f"outputs: {', '.join(outputs)}")
+    spec["kind"], spec["output"] = kind, out
+    return spec
+
+
+def build_reference(scene: Scene, model) -> Reference:
+    """Evaluate the closed form, or compute the tight solution and its error estimate."""
+    spec = reference_spec(scene)
+    t_end = float(spec.get("t_end", scene.simulate.get("t_end", 1.0)))
+    dt_out = min(float(scene.simulate.get("dt_out", t_end / 500)), t_end / 50)
+    out = spec["output"]
+    energy = _compile(spec["energy"], scene, model.output_names, "energy") if "energy" in spec else None
+    if spec["kind"] == "closed_form":
+        f = _compile(spec["expression"], scene, [], "expression")
+        scale = max(float(np.max(np.abs(f(np.linspace(0.0, t_end, 20001), {})))), 1e-300)
+        return Reference("closed_form", out, t_end, dt_out, 0.0, "closed form", energy, scale, formula=f)
+    runs = []
+    for rtol in (1e-12, 1e-13):
+        _fresh(model)
+        runs.append(simulate(model, t_end, dt_out, "auto", rtol, rtol * 1e-2, progress=False))
+    values = runs[1][out]
+    scale = max(float(np.max(np.abs(values))), 1e-300)
+    err = float(np.max(np.abs(runs[0][out] - values)) / scale)
+    note = f"tight: {runs[1].solver} at rtol 1e-13; its error estimated as its distance to the rtol 1e-12 solution"
+    return Reference("tight", out, t_end, dt_out, err, note, energy, scale, grid=runs[1].t, values=values)
+
+
+# -------------------------------------------------------------------------------------------------
+# runs
+
+@dataclass
+class Run:
+    scene: str
+    backend: str
+    solver: str
+    rtol: float
+    atol: float
+    status: str = "ok"
+    chosen: str = ""
+    err_final: float = math.nan
+    err_max: float = math.nan
+    ref_error: float = math.nan
+    energy_drift: float = math.nan
+    wall_s: float = math.nan
+    repeats: int = 0
+    nfev: int = 0
+    njev: int = 0
+    nlu: int = 0
+    steps: int = 0
+    rejected: object = ""
+    newton_iterations: int = 0
+    events: int = 0
+    message: str = ""
+
+    def row(self) -> dict:
+        return {k: getattr(self, k) for k in CSV_FIELDS}
+
+
+def _measure(run: Run, ref: Reference, res, walls) -> None:
+    s = res.stats
+    dev = np.abs(res[ref.output] - ref.at(res.t)) / ref.scale
+    run.err_final, run.err_max = float(dev[-1]), float(np.max(dev))
+    run.ref_error = ref.error
+    if ref.energy is not None:
+        E = ref.energy(res.t, res.outputs)
+        run.energy_drift = float(np.max(np.abs(E - E[0])) / max(abs(E[0]), 1e-300))
+    run.wall_s = statistics.median(walls)
+    run.repeats = len(walls)
+    run.chosen = res.solver
+    run.nfev, run.njev, run.nlu = int(s.get("nfev", 0)), int(s.get("njev", 0)), int(s.get("nlu", 0))
+    run.steps = int(s.get("steps", 0))
+    run.rejected = s.get("rejected", "")
+    run.newton_iterations = int(s.get("newton_iterations", 0))
+    run.events = len(res.events)
+
+
+def _fresh(model) -> None:
+    """Reset the warm-start values of the model's Newton loops, so every run starts alike.
+
+    Work-around: the generated module keeps the last Newton solution of each nonlinear loop in a
+    module-level ``_guess`` list across runs (and after a failed run).
+    """
+    guess = model.rhs.__globals__.get("_guess") if model is not None else None
+    if guess is not None:
+        guess[:] = [[0.0] * len(g) for g in guess]      # the generated initial values
+
+
+def _one(fn, repeats: int, model=None):
+    """Run ``fn`` (returns a Result) up to ``repeats`` times; wall times from the simulator."""
+    walls, res = [], None
+    for k in range(repeats):
+        _fresh(model)
+        start = time.perf_counter()
+        res = fn()
+        wall = res.stats.get("wall_time", time.perf_counter() - start)
+        walls.append(wall)
+        if wall > 1.0:              # long runs: one measurement is enough
+            break
+    return res, walls
+
+
+# -------------------------------------------------------------------------------------------------
+# hand-written comparison
+
+def _time_calls(fn, args, min_time=0.05) -> float:
+    """Median time of one call of ``fn(*a)`` over the argument list ``args`` [s]."""
+    reps, samples = 1, []
+    for a in args:                   # warm-up (caches, lazy imports)
+        fn(*a)
+    while True:
+        start = time.perf_counter()
+        for _ in range(reps):
+            for a in args:
+                fn(*a)
+        el = time.perf_counter() - start
+        if el >= min_time / 5 or reps > 1e6:
+            break
+        reps *= 4
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(reps):
+            for a in args:
+                fn(*a)
+        samples.append((time.perf_counter() - start) / (reps * len(args)))
+    return statistics.median(samples)
+
+
+def side_by_side(scene: Scene, model, ref: Reference, chosen: str, rtol: float, atol: float,
+                 naive_budget: int) -> dict | None:
+    """Generated against hand-written right-hand side; naive ``solve_ivp`` against ``auto``."""
+    from scipy.integrate import solve_ivp
+    try:
+        from elements.scenes import hand_model
+    except ImportError:
+        return None
+    hand = hand_model(scene)
+    if hand is None:
+        return None
+    idx = hand.permutation(model.state_names)
+    rng = np.random.default_rng(0)
+    pts = [(float(t), model.x0 + 0.1 * rng.normal(size=len(model.x0))) for t in np.linspace(0, ref.t_end, 8)]
+    gen_args = [(t, x) for t, x in pts]
+    hand_args = [(t, x[idx]) for t, x in pts]
+    mismatch = max(float(np.max(np.abs(model.rhs(t, x)[idx] - hand.rhs(t, xh)))
+                        / max(1.0, float(np.max(np.abs(hand.rhs(t, xh)))))) for (t, x), (_, xh) in zip(gen_args, hand_args))
+    t_gen = _time_calls(model.rhs, gen_args)
+    t_hand = _time_calls(hand.rhs, hand_args)
+    jac_ratio = math.nan
+    if hand.jac is not None:
+        jac_ratio = _time_calls(model.jac, gen_args[:2]) / _time_calls(hand.jac, hand_args[:2])
+    out = {"scene": scene.name, "n_states": len(model.x0), "rhs_generated_us": 1e6 * t_gen,
+           "rhs_hand_us": 1e6 * t_hand, "rhs_ratio": t_gen / t_hand, "jac_ratio": jac_ratio,
+           "rhs_mismatch": mismatch, "solver": chosen, "rtol": rtol}
+    # whole run, same solver and tolerances
+    res, walls = _one(lambda: simulate(model, ref.t_end, ref.dt_out, chosen, rtol, atol, progress=False), 3, model)
+    kw = {"jac": hand.jac} if chosen in IMPLICIT and hand.jac is not None else {}
+    method = SOLVERS[chosen]
+    hw = []
+    for _ in range(len(walls)):
+        start = time.perf_counter()
+        sol = solve_ivp(hand.rhs, (0.0, ref.t_end), hand.x0, method=method, t_eval=res.t, rtol=rtol, atol=atol, **kw)
+        hw.append(time.perf_counter() - start)
+    g = hand.outputs.get(ref.output)
+    yref = ref.at(res.t)
+    out.update({"run_generated_s": statistics.median(walls), "run_hand_s": statistics.median(hw),
+                "run_ratio": statistics.median(walls) / statistics.median(hw),
+                "nfev_generated": res.stats["nfev"], "nfev_hand": sol.nfev,
+                "err_generated": float(np.max(np.abs(res[ref.output] - yref)) / ref.scale),
+                "err_hand": float(np.max(np.abs(g(sol.t, sol.y) - yref)) / ref.scale) if g and sol.success
+                else math.nan})
+    # naive: solve_ivp defaults (RK45, rtol 1e-3, atol 1e-6) on the hand-written right-hand side
+    lam = np.linalg.eigvals(hand.jac(0.0, hand.x0)) if hand.jac is not None else []
+    bound = explicit_stability_bound(lam, "RK45", ref.t_end)
+    out["naive_min_nfev"] = bound["nfev"]
+    if bound["nfev"] > naive_budget:
+        out.update({"naive_status": f"skipped: the stability bound needs >= {bound['nfev']:.3g} evaluations",
+                    "naive_s": math.nan, "naive_err": math.nan, "naive_nfev": math.nan})
+        return out
+    start = time.perf_counter()
+    sol = solve_ivp(hand.rhs, (0.0, ref.t_end), hand.x0, t_eval=res.t)
+    naive_s = time.perf_counter() - start
+    err = float(np.max(np.abs(g(sol.t, sol.y) - yref)) / ref.scale) if g and sol.success else math.nan
+    out.update({"naive_status": "ok" if sol.success else sol.message, "naive_s": naive_s, "naive_err": err,
+                "naive_nfev": sol.nfev})
+    return out
+
+
+# -------------------------------------------------------------------------------------------------
+# the bench
+
+@dataclass
+class SceneReport:
+    name: str
+    path: str
+    reference: Reference | None
+    runs: list = field(default_factory=list)
+    side: dict | None = None
+    compile_s: float = math.nan
+    stiffness: str = ""
+    n_states: int = 0
+    skipped: str = ""
+
+
+class _Bar:
+    def __init__(self, total, enabled):
+        self.total, self.done, self.enabled = max(total, 1), 0, enabled
+
+    def tick(self, label):
+        self.done += 1
+        if self.enabled:
+            frac = self.done / self.total
+            sys.stderr.write(f"\r[{'#' * int(30 * frac):<30}] {self.done}/{self.total} {label[:50]:<50}")
+            sys.stderr.flush()
+
+    def close(self):
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def default_scenes(root: Path | None = None) -> list[Path]:
+    """Every scene under ``diagrams/`` (recursively, so with the hard cases in ``diagrams/hard/``)
+    tagged ``bench: true`` and well-posed by declaration (no ``expect_check``)."""
+    root = root or Path(__file__).resolve().parents[1] / "diagrams"
+    out = []
+    for path in sorted(root.rglob("*.yaml")):
+        try:
+            sc = load(path)
+        except MultipoleError:
+            continue
+        if sc.bench and not sc.expect_check:
+            out.append(path)
+    return out
+
+
+def bench_scene(scene: Scene, solvers, tolerances, repeats, backends, budget, bar, naive_budget) -> SceneReport:
+    """Reference, solver × tolerance sweep for every backend, and the hand-written comparison of one scene."""
+    rep = SceneReport(scene.name, scene.path, None)
+    analysis = pipeline.check(scene)
+    if not analysis.ok:
+        rep.skipped = "not well-posed: " + analysis.errors[0].message
+        return rep
+    start = time.perf_counter()
+    model = pipeline.model(scene)
+    rep.compile_s = time.perf_counter() - start
+    rep.n_states = len(model.x0)
+    ref = build_reference(scene, model)
+    rep.reference = ref
+    rep.stiffness = choose_solver(model, ref.t_end, 1e-6)[1].replace("|lambda|max*t_end", "λmax·t_end")
+    try:
+        lam = np.linalg.eigvals(model.jac(0.0, model.x0)) if len(model.x0) else []
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+        lam = []
+    ratio = scene.simulate.get("atol", 1e-9) / scene.simulate.get("rtol", 1e-6)
+    for backend in backends:
+        for solver in solvers:
+            slow = False
+            for rtol in tolerances:
+                run = Run(scene.name, backend, solver, rtol, rtol * ratio)
+                bar.tick(f"{scene.name} {backend} {solver} {rtol:g}")
+                if slow:
+                    run.status, run.message = "skipped", "a looser tolerance already exceeded the time budget"
+                    rep.runs.append(run)
+                    continue
+                method = choose_solver(model, ref.t_end, rtol)[0] if solver == "auto" else solver
+                if method in EXPLICIT_RK:
+                    bound = explicit_stability_bound(lam, method, ref.t_end)
+                    if bound["nfev"] > budget:
+                        run.status = "skipped"
+                        run.message = ((f"auto would run {method}: " if solver == "auto" else "")
+                                       + f"stability bound: h <= {bound['h_max']:.3g} s, >= {bound['nfev']:.3g} "
+                                       f"evaluations (budget {budget:.3g})")
+                        rep.runs.append(run)
+                        continue
+                try:
+                    if backend == "numpy":
+                        def fn():
+                            return simulate(model, ref.t_end, ref.dt_out, solver, rtol, run.atol, progress=False)
+                    else:
+                        def fn():
+                            return pipeline.run(scene, t_end=ref.t_end, dt_out=ref.dt_out, solver=solver, rtol=rtol,
+                                                atol=run.atol, progress=False, backend=backend)
+                    res, walls = _one(fn, repeats, model if backend == "numpy" else None)
+                    _measure(run, ref, res, walls)
+                    if solver != "auto" and res.solver != solver:
+                        run.message = f"run as {res.solver} by the {backend} backend"
+                    if run.wall_s > 20.0:
+                        slow = True
+                except MultipoleError as exc:
+                    unsupported = exc.code == "unknown_solver" and backend != "numpy"
+                    run.status = "unsupported" if unsupported else "failed"
+                    run.message = str(exc).splitlines()[0][:200]
+                except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
+                    run.status, run.message = "failed", str(exc).splitlines()[0][:200]
+                rep.runs.append(run)
+    auto = [r for r in rep.runs if r.solver == "auto" and r.backend == "numpy" and r.status == "ok"]
+    chosen = auto[len(auto) // 2].chosen if auto else "Radau"
+    rtol = scene.simulate.get("rtol", 1e-6)
+    rep.side = side_by_side(scene, model, ref, chosen, rtol, rtol * ratio, naive_budget)
+    if rep.side is not None:
+        rep.side.update(_naive_vs_auto(rep))
+    return rep
+
+
+def _naive_vs_auto(rep: SceneReport) -> dict:
+    """Fastest ``auto`` run at least as accurate as the naive run, and the wall-time ratio."""
+    side = rep.side
+    err = side.get("naive_err", math.nan)
+    ok = [r for r in rep.runs if r.solver == "auto" and r.backend == "numpy" and r.status == "ok"]
+    if not ok:
+        return {}
+    if not math.isfinite(err):       # naive skipped: compare with auto's default-tolerance run
+        best = min(ok, key=lambda r: abs(math.log10(r.rtol) + 3))
+        return {"auto_equal_err_s": best.wall_s, "auto_equal_err": best.err_max, "auto_equal_rtol": best.rtol}
+    good = [r for r in ok if r.err_max <= err]
+    if not good:
+        return {"auto_equal_err_s": math.nan}
+    best = min(good, key=lambda r: r.wall_s)
+    return {"auto_equal_err_s": best.wall_s, "auto_equal_err": best.err_max, "auto_equal_rtol": best.rtol,
+            "naive_speedup": side["naive_s"] / best.wall_s}
+
+
+def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers=None, tolerances=None,
+              repeats=None, budget=None, figures_dir=None) -> list[SceneReport]:
+    """Run the bench and write its CSV files, figures and summary into ``out_dir``.
+
+    ``figures_dir`` (default ``out_dir``) receives the work-precision figures ``bench_<scene>.png``.
+    """
+    from .backends import available
+    paths = [Path(f) for f in files] if files else default_scenes()
+    solvers = list(solvers or SWEEP_SOLVERS)
+    for s in solvers:
+        if s != "auto" and s not in SOLVERS:
+            raise MultipoleError("unknown_solver", f"unknown solver {s!r}", f"use auto or one of {', '.join(SOLVERS)}")
+    tolerances = list(tolerances or (QUICK_TOLERANCES if quick else TOLERANCES))
+    repeats = repeats or (1 if quick else 3)
+    budget = budget or (5e4 if quick else 4e5)
+    naive_budget = 2e5 if quick else 2e7
+    backends = ["numpy"] + [b for b in available() if b != "numpy"]
+    scenes = [load(p) for p in paths]
+    bar = _Bar(len(scenes) * len(solvers) * len(tolerances) * len(backends), sys.stderr.isatty() and not quiet)
+    reports = []
+    for sc in scenes:
+        reports.append(bench_scene(sc, solvers, tolerances, repeats, backends, budget, bar, naive_budget))
+    bar.close()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(reports, out / "bench.csv")
+    write_side_csv(reports, out / "side_by_side.csv")
+    figs = Path(figures_dir) if figures_dir else out
+    figs.mkdir(parents=True, exist_ok=True)
+    for rep in reports:
+        if rep.reference is not None:
+            plot_work_precision(rep, figs / f"bench_{rep.name}.png")
+    (out / "summary.md").write_text(summary(reports, quick), encoding="utf-8")
+    return reports
+
+
+def write_csv(reports, path) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, CSV_FIELDS)
+        w.writeheader()
+        for rep in reports:
+            for r in rep.runs:
+                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.row().items()})
+
+
+SIDE_FIELDS = ["scene", "n_states", "solver", "rtol", "rhs_generated_us", "rhs_hand_us", "rhs_ratio", "jac_ratio",
+               "rhs_mismatch", "run_generated_s", "run_hand_s", "run_ratio", "nfev_generated", "nfev_hand",
+               "err_generated", "err_hand", "naive_status", "naive_s", "naive_err", "naive_nfev", "naive_min_nfev",
+               "auto_equal_err_s", "auto_equal_err", "auto_equal_rtol", "naive_speedup"]
+
+
+def write_side_csv(reports, path) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, SIDE_FIELDS)
+        w.writeheader()
+        for rep in reports:
+            if rep.side:
+                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in rep.side.items()
+                            if k in SIDE_FIELDS})
+
+
+_STYLE = {"RK45": ("tab:blue", "o"), "DOP853": ("tab:orange", "s"), "Radau": ("tab:green", "^"),
+          "BDF": ("tab:red", "v"), "LSODA": ("tab:purple", "D"), "GL4": ("tab:brown", "P"),
+          "auto": ("black", "*"), "RK23": ("tab:pink", "x")}
+
+
+def plot_work_precision(rep: SceneReport, path) -> None:
+    """Error against wall time and against nfev, log-log, one curve per solver (and backend)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    floor = max(rep.reference.error, 1e-16)
+    for (solver, backend) in dict.fromkeys((r.solver, r.backend) for r in rep.runs):
+        runs = [r for r in rep.runs if r.solver == solver and r.backend == backend and r.status == "ok"
+                and (r.chosen == solver or solver == "auto")]          # a backend's stand-ins are not curves
+        if not runs:
+            continue
+        color, marker = _STYLE.get(solver, ("gray", "."))
+        label = solver if backend == "numpy" else f"{solver} [{backend}]"
+        ls = "-" if backend == "numpy" else "--"
+        err = [max(r.err_max, floor * 0.5) for r in runs]
+        axes[0].loglog([r.wall_s for r in runs], err, ls, color=color, marker=marker, label=label, ms=5)
+        axes[1].loglog([r.nfev for r in runs], err, ls, color=color, marker=marker, label=label, ms=5)
+    for ax, xl in zip(axes, ("wall time [s] (median of repeats)", "right-hand side evaluations (nfev)")):
+        ax.set_xlabel(xl)
+        ax.set_ylabel(f"max relative error of {rep.reference.output}")
+        ax.grid(True, which="both", alpha=0.3)
+        if rep.reference.error > 0:
+            ax.axhline(rep.reference.error, color="0.5", ls=":", lw=1)
+            ax.text(ax.get_xlim()[0], rep.reference.error, " reference error", va="bottom", fontsize=7, color="0.4")
+    skipped = sorted({r.solver for r in rep.runs if r.status == "skipped"})
+    failed = sorted({r.solver for r in rep.runs if r.status == "failed"})
+    note = (f"skipped (stability/time budget): {', '.join(skipped)}" if skipped else "") + \
+           (f"   failures: {', '.join(failed)}" if failed else "")
+    axes[1].legend(fontsize=8, loc="best")
+    fig.suptitle(f"{rep.name}: work-precision ({rep.reference.note.split(';')[0]}; {rep.n_states} states)",
+                 fontsize=10)
+    if note:
+        fig.text(0.5, 0.01, note, ha="center", fontsize=8, color="0.3")
+    fig.tight_layout(rect=(0, 0.03, 1, 0.95))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# -------------------------------------------------------------------------------------------------
+# summary
+
+def _fmt(x, spec=".2g"):
+    return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
+
+
+def fastest(rep: SceneReport, target: float):
+    """The fastest successful numpy run with ``err_max <= target`` (above the reference's own error)."""
+    ok = [r for r in rep.runs if r.status == "ok" and r.backend == "numpy" and r.err_max <= target]
+    return min(ok, key=lambda r: r.wall_s) if ok else None
+
+
+_WHY_WINNER = {
+    "RK45": "RK45: cheap low-order explicit steps suffice at this accuracy",
+    "RK23": "RK23: cheap low-order explicit steps suffice at this accuracy",
+    "DOP853": "DOP853: order 8, fewest explicit steps at tight tolerances",
+    "LSODA": "LSODA: its stepping loop is compiled Fortran (Adams methods while non-stiff, BDF when stiff), so "
+             "it pays the least Python overhead per step; only the right-hand side and Jacobian calls are Python",
+    "Radau": "Radau: order-5 implicit steps with the analytic Jacobian, not limited by stability",
+    "BDF": "BDF: cheap implicit multistep steps with the analytic Jacobian",
+    "GL4": "GL4: implicit order-4 collocation",
+}
+
+
+def recommendation(rep: SceneReport) -> str:
+    """One paragraph: which solver to pick for this scene and why, from the measured runs."""
+    ref = rep.reference
+    targets = [t for t in (1e-3, 1e-6, 1e-9) if t > 3 * ref.error]
+    picks = {t: fastest(rep, t) for t in targets}
+    stiff = rep.stiffness.startswith("stiff")
+    numpy_ok = [r for r in rep.runs if r.status == "ok" and r.backend == "numpy"]
+    events = max((r.events for r in numpy_ok), default=0)
+    parts, winners = [], []
+    for t, p in picks.items():
+        if p:
+            winners.append(p.chosen if p.solver == "auto" else p.solver)
+            label = f"auto → {p.chosen}" if p.solver == "auto" else p.solver
+            parts.append(f"error ≤ {t:g}: **{label}** (rtol {p.rtol:g}, {p.wall_s * 1e3:.3g} ms, nfev {p.nfev})")
+        else:
+            parts.append(f"error ≤ {t:g}: no run reached it")
+    why = [f"{'stiff' if stiff else 'not stiff'} ({rep.stiffness.split('(', 1)[-1].rstrip(')')})"]
+    skipped = sorted({r.solver for r in rep.runs if r.status == "skipped" and r.backend == "numpy"
+                      and r.message.startswith("stability")})
+    if skipped:
+        msg = next(r.message for r in rep.runs if r.status == "skipped" and r.solver == skipped[0])
+        why.append(f"explicit methods ({', '.join(skipped)}) are held to the stability limit of the fast mode "
+                   f"whatever the tolerance ({msg})")
+    why += [_WHY_WINNER[w] for w in dict.fromkeys(winners) if w in _WHY_WINNER]
+    if events:
+        why.append(f"the scene switches ({events} events per run): every event restarts the integrator — the "
+                   "multistep methods (BDF, LSODA) restart at order 1, one-step methods lose only the step-size "
+                   "history")
+    energy = [r for r in numpy_ok if math.isfinite(r.energy_drift)]
+    if energy:
+        best = min(energy, key=lambda r: r.energy_drift)
+        gl = [r.energy_drift for r in energy if r.solver == "GL4"]
+        why.append(f"the smallest energy drift is {best.solver}'s ({best.energy_drift:.2g} at rtol {best.rtol:g})"
+                   + (f"; GL4 (Gauss–Legendre) conserves a quadratic energy at its steps, what remains "
+                      f"({min(gl):.2g}) is interpolation between steps" if gl and min(gl) < 1e-6 else ""))
+    failed = [r for r in rep.runs if r.status == "failed" and r.backend == "numpy"]
+    if failed:
+        why.append(f"{len(failed)} run(s) failed ({', '.join(sorted({f'{r.solver} rtol {r.rtol:g}' for r in failed}))}): "
+                   f"{failed[0].message}")
+    auto = [r for r in numpy_ok if r.solver == "auto"]
+    if auto:
+        why.append(f"`auto` chose {', '.join(dict.fromkeys(r.chosen for r in auto))}")
+    pick = max(dict.fromkeys(winners), key=winners.count) if winners else "Radau"
+    return f"Pick **{pick}**. " + "; ".join(parts) + ". Why: " + "; ".join(why) + "."
+
+
+def summary(reports, quick: bool) -> str:
+    lines = ["# multipole bench — speed against error", "",
+             "Errors are relative to the compared output's largest magnitude: `err_max` is the largest deviation "
+             "over the output grid, `err_final` the one at the end.  Wall times are the simulator's integration "
+             "time (compilation excluded), median of repeats.  `rejected` is reported where the integrator "
+             "exposes it.", ""]
+    if quick:
+        lines += ["*Quick run: fewer tolerances, single repeats.*", ""]
+    for rep in reports:
+        lines += [f"## {rep.name}", "", f"`{rep.path}`", ""]
+        if rep.skipped:
+            lines += [f"Skipped: {rep.skipped}", ""]
+            continue
+        ref = rep.reference
+        lines += [f"- states: {rep.n_states}; compile (check + equations + codegen): {rep.compile_s:.3g} s",
+                  f"- reference: {ref.note}; compared output `{ref.output}`; estimated error of the reference "
+                  f"{ref.error:.2g}" if ref.kind == "tight" else
+                  f"- reference: closed form of `{ref.output}` (exact up to round-off)",
+                  f"- stiffness: {rep.stiffness}", "", recommendation(rep), "",
+                  "| solver | rtol | status | err_max | err_final | energy drift | wall [ms] | nfev | njev | nlu | "
+                  "steps | rejected |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in rep.runs:
+            name = r.solver if r.backend == "numpy" else f"{r.solver} [{r.backend}]"
+            if r.chosen and r.chosen != r.solver:
+                name += f" → {r.chosen}"
+            if r.status != "ok":
+                lines.append(f"| {name} | {r.rtol:g} | {r.status} | {r.message} | | | | | | | | |")
+                continue
+            lines.append(f"| {name} | {r.rtol:g} | ok | {_fmt(r.err_max)} | {_fmt(r.err_final)} | "
+                         f"{_fmt(r.energy_drift)} | {r.wall_s * 1e3:.3g} | {r.nfev} | {r.njev} | {r.nlu} | {r.steps} | "
+                         f"{r.rejected if r.rejected != '' else 'n/a'} |")
+        lines.append("")
+        if rep.side:
+            s = rep.side
+            lines += ["Generated model against a hand-written numpy right-hand side of the same equations:", "",
+                      f"- per call: generated {s['rhs_generated_us']:.3g} µs, hand-written {s['rhs_hand_us']:.3g} µs, "
+                      f"ratio **{s['rhs_ratio']:.2f}** (Jacobian ratio {_fmt(s['jac_ratio'], '.2f')}); the two "
+                      f"right-hand sides agree to {s['rhs_mismatch']:.1g}",
+                      f"- whole run with {s['solver']} at rtol {s['rtol']:g}: multipole {s['run_generated_s'] * 1e3:.3g} ms "
+                      f"(nfev {s['nfev_generated']}), hand-written + solve_ivp {s['run_hand_s'] * 1e3:.3g} ms "
+                      f"(nfev {s['nfev_hand']}), ratio **{s['run_ratio']:.2f}**",
+                      "- naive `solve_ivp` defaults (RK45, rtol 1e-3) on the hand-written model: "
+                      + (f"{s['naive_s'] * 1e3:.3g} ms, error {s['naive_err']:.2g}, nfev {s['naive_nfev']}"
+                         if s.get("naive_status") == "ok" else str(s.get("naive_status")))
+                      + (f"; `auto` at equal or better error: {s['auto_equal_err_s'] * 1e3:.3g} ms "
+                         f"(rtol {s['auto_equal_rtol']:g}, error {s['auto_equal_err']:.2g}), "
+                         f"**{s['naive_speedup']:.3g}× faster**" if math.isfinite(s.get("naive_speedup", math.nan))
+                         else ""), ""]
+    return "\n".join(lines) + "\n"
+
+
+def cmd_bench(args) -> int:
+    """CLI entry: ``multipole bench [FILES...] [-o DIR] [--quick] [--quiet]``."""
+    reports = run_bench(args.files or None, args.output, quick=args.quick, quiet=args.quiet)
+    ok = sum(r.status == "ok" for rep in reports for r in rep.runs)
+    failed = sum(r.status == "failed" for rep in reports for r in rep.runs)
+    print(f"bench: {len(reports)} scene(s), {ok} run(s) ok, {failed} failed; wrote {args.output}/bench.csv, "
+          f"side_by_side.csv, summary.md and {sum(r.reference is not None for r in reports)} figure(s)")
+    return 0

@@ -1,0 +1,101 @@
+"""``multipole bench``: references, error measures, stability bounds and a tiny smoke run."""
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from elements import scenes as S
+from multipole import MultipoleError, NetlistError, pipeline
+from multipole.bench import (build_reference, default_scenes, explicit_stability_bound, reference_spec,
+                             rk_stability_radius)
+from multipole.cli import main
+from multipole.netlist import loads
+from multipole.simulate import simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_default_scenes_are_the_bench_tagged_ones_including_the_hard_cases():
+    names = {p.relative_to(ROOT / "diagrams").as_posix() for p in default_scenes()}
+    assert "drive_train.yaml" in names and "rlc_series.yaml" in names            # bench: true
+    assert "power_split_rigid.yaml" not in names                                  # not tagged
+    hard = {f"hard/{n}" for n in S.HARD_SCENES}
+    # every simulatable hard case but the 10^4-period one (benchmarks/long_horizon.py studies that)
+    assert hard - names == {"hard/differentiated_step.yaml", "hard/two_mass_long.yaml"}
+
+
+def _with_reference(ref: str) -> str:
+    text = S.two_mass_oscillator(periods=1)
+    head = text[:text.index("reference:")]
+    return head + ref + "\n"
+
+
+@pytest.mark.parametrize("ref, code", [
+    ("reference: {kind: exact}", "bad_reference"),
+    ("reference: {kind: closed_form, output: m1.v}", "bad_reference"),
+    ("reference: {kind: tight, output: nowhere.v}", "bad_reference"),
+    ("reference: {kind: tight, tolerance: 3}", "bad_reference"),
+])
+def test_bad_reference_mappings_are_refused(ref, code):
+    with pytest.raises(MultipoleError) as err:
+        reference_spec(loads(_with_reference(ref), "r.yaml"))
+    assert err.value.code == code
+
+
+def test_reference_formulas_go_through_the_expression_whitelist():
+    sc = loads(_with_reference('reference: {kind: closed_form, output: m1.v, expression: "__import__(1)"}'), "r.yaml")
+    with pytest.raises(NetlistError):
+        build_reference(sc, pipeline.model(sc))
+
+
+def test_closed_form_reference_and_error_measure():
+    sc = loads(S.two_mass_oscillator(periods=2), "t.yaml")
+    model = pipeline.model(sc)
+    ref = build_reference(sc, model)
+    assert ref.kind == "closed_form" and ref.error == 0.0 and ref.energy is not None
+    res = simulate(model, ref.t_end, ref.dt_out, "RK45", 1e-4, 1e-7, progress=False)
+    p = {k: float(v) for k, v in sc.network.params.items()}
+    exact = S.linear_response(S._two_mass_matrix(p), S._two_mass_x0(p), [0, 1 / p["m1"], 0, 0], t=res.t)
+    assert np.allclose(ref.at(res.t), exact, rtol=0, atol=1e-12)
+    energy = ref.energy(res.t, res.outputs)
+    E0 = 0.5 * p["m2"] * p["v2_0"] ** 2 + 0.5 * (p["k1"] + p["k2"]) * p["x1_0"] ** 2
+    assert energy[0] == pytest.approx(E0, rel=1e-12)
+
+
+def test_tight_reference_states_its_own_error():
+    sc = loads(S.slack_rope(t_end=0.5), "r.yaml")
+    ref = build_reference(sc, pipeline.model(sc))
+    assert ref.kind == "tight" and 0 <= ref.error < 1e-9 and "1e-13" in ref.note
+
+
+def test_explicit_stability_bound_of_a_real_stiff_eigenvalue():
+    r = rk_stability_radius("RK45", np.pi)
+    bound = explicit_stability_bound([-1e6, -1.0], "RK45", 2.0)
+    assert bound["h_max"] == pytest.approx(r / 1e6)
+    assert bound["steps"] == pytest.approx(2.0 * 1e6 / r, rel=1e-6, abs=1)
+    assert bound["nfev"] == 6 * bound["steps"]
+    assert explicit_stability_bound([1j, -1j], "RK45", 2.0)["nfev"] == 0       # undamped: accuracy, not stability
+
+
+def test_bench_quick_smoke_writes_csv_figure_and_summary(tmp_path, capsys):
+    scene_file = tmp_path / "tiny.yaml"
+    scene_file.write_text(S.two_mass_oscillator(periods=1, name="two_mass_oscillator_tiny"), encoding="utf-8")
+    out = tmp_path / "report"
+    assert main(["bench", str(scene_file), "-o", str(out), "--quick", "--quiet"]) == 0
+    assert "bench: 1 scene(s)" in capsys.readouterr().out
+    rows = list(csv.DictReader(open(out / "bench.csv", encoding="utf-8")))
+    numpy_rows = [r for r in rows if r["backend"] == "numpy"]
+    assert {r["solver"] for r in numpy_rows} == {"RK45", "DOP853", "Radau", "BDF", "LSODA", "GL4", "auto"}
+    assert {float(r["rtol"]) for r in numpy_rows} == {1e-3, 1e-6, 1e-9}
+    ok = [r for r in numpy_rows if r["status"] == "ok"]
+    assert len(ok) == len(numpy_rows)
+    for r in ok:
+        assert float(r["err_max"]) >= float(r["err_final"]) and int(r["nfev"]) > 0 and float(r["wall_s"]) > 0
+    tight = [float(r["err_max"]) for r in ok if r["solver"] == "DOP853"]
+    assert tight[-1] < tight[0]                               # tighter tolerance, smaller error
+    side = list(csv.DictReader(open(out / "side_by_side.csv", encoding="utf-8")))
+    assert len(side) == 1 and float(side[0]["rhs_mismatch"]) < 1e-12 and float(side[0]["rhs_ratio"]) > 0
+    assert (out / "bench_two_mass_oscillator_tiny.png").stat().st_size > 10_000
+    summary = (out / "summary.md").read_text(encoding="utf-8")
+    assert "## two_mass_oscillator_tiny" in summary and "Pick **" in summary and "closed form" in summary

@@ -1,0 +1,377 @@
+"""Hard cases for the integrators and the analyser (diagrams/hard/).
+
+Expected values come from theory (closed forms, stability charts, conservation laws, exact
+piecewise solutions) or from hand-written scipy models of the same physics; work counters are
+checked against bounds derived from the methods' stability limits.  No wall-clock assertions.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.linalg import expm
+from scipy.optimize import brentq
+
+from elements import scenes as S
+from multipole import IllPosedError, pipeline
+from multipole.bench import explicit_stability_bound
+from multipole.netlist import loads
+from multipole.simulate import IMPLICIT, SOLVERS, simulate
+from multipole.solvers import GL4, GaussLegendre, gauss_legendre_tableau
+
+HARD = Path(__file__).resolve().parents[1] / "diagrams" / "hard"
+
+
+def scene(text, overrides=None):
+    return loads(text, "hard.yaml", overrides)
+
+
+def params(sc) -> dict:
+    return {k: float(v) for k, v in sc.network.params.items()}
+
+
+# -- the scene files and the hand-written models -------------------------------------------------
+
+def test_hard_scene_files_are_written_by_the_builders():
+    files = {p.name: p.read_text(encoding="utf-8") for p in HARD.glob("*.yaml")}
+    assert files == S.HARD_SCENES, "regenerate with: python benchmarks/make_hard_scenes.py"
+
+
+@pytest.mark.parametrize("text", [S.two_mass_oscillator(), S.stiff_drive_train(), S.mass_spring_chain(5)],
+                         ids=["two_mass", "stiff_drive_train", "chain5"])
+def test_generated_rhs_and_jacobian_equal_the_hand_written_physics(text):
+    sc = scene(text)
+    model = pipeline.model(sc)
+    hand = S.hand_model(sc)
+    idx = hand.permutation(model.state_names)
+    assert np.array_equal(model.x0[idx], hand.x0)
+    rng = np.random.default_rng(3)
+    for t in (0.0, 0.37, 1.9):
+        x = rng.normal(size=len(model.x0))
+        f_gen, f_hand = model.rhs(t, x)[idx], hand.rhs(t, x[idx])
+        assert np.allclose(f_gen, f_hand, rtol=1e-13, atol=1e-12 * np.max(np.abs(f_hand)))
+        J_gen = model.jac(t, x)[np.ix_(idx, idx)]
+        assert np.allclose(J_gen, hand.jac(t, x[idx]), rtol=1e-13, atol=0)
+
+
+def _expm_response(A, y0, forcing=None, tau=None, t=()):
+    """Independent reference: matrix exponential of the system augmented with the input's state."""
+    n = len(A)
+    if forcing is None:
+        return np.array([expm(A * tk) @ y0 for tk in t])
+    # u' = (U - u)/tau written with z = U - u: z' = -z/tau, u = U - z; y' = A y + b (U - z)
+    M = np.zeros((n + 2, n + 2))
+    M[:n, :n] = A
+    M[:n, n] = forcing          # times the constant 1 (state n+1 ... carries U)
+    M[:n, n + 1] = -forcing
+    M[n + 1, n + 1] = -1.0 / tau
+    z0 = np.concatenate([y0, [1.0, 1.0]])
+    return np.array([(expm(M * tk) @ z0)[:n] for tk in t])
+
+
+def test_closed_form_references_solve_the_hand_written_equations():
+    t = np.linspace(0, 3, 7)
+    p = S._TWO_MASS
+    A, y0 = S._two_mass_matrix(p), S._two_mass_x0(p)
+    c = np.array([0, 1 / p["m1"], 0, 0])
+    assert np.allclose(S.linear_response(A, y0, c, t=t), _expm_response(A, y0, t=t) @ c, rtol=0, atol=1e-12)
+    p = S._STIFF
+    A, b = S._stiff_matrix(p), np.array([p["T0"], 0.0, 0.0])
+    c = np.array([0, 0, 1 / p["J2"]])
+    ref = _expm_response(A, np.zeros(3), b, p["tau"], t) @ c
+    assert np.allclose(S.linear_response(A, np.zeros(3), c, b, p["tau"], t=t), ref, rtol=1e-10, atol=1e-10)
+
+
+# -- 1. stiff drive train --------------------------------------------------------------------------
+
+def test_stiff_drive_train_auto_is_implicit_cheap_and_accurate():
+    sc = scene(S.stiff_drive_train())
+    p = params(sc)
+    A = S._stiff_matrix(p)
+    lam = np.linalg.eigvals(A)
+    assert np.max(np.abs(lam)) / np.min(np.abs(lam)) >= 1e6          # the scene is what it claims
+    res = pipeline.run(sc, progress=False)                            # auto, rtol 1e-6
+    assert res.solver in IMPLICIT
+    t_end = sc.simulate["t_end"]
+    for method in ("RK45", "DOP853"):
+        bound = explicit_stability_bound(lam, method, t_end)
+        assert bound["nfev"] >= 1e6                                   # what an explicit method must pay
+        assert res.stats["nfev"] <= bound["nfev"] / 1000
+    assert res.stats["njev"] <= 5 and res.stats["nlu"] <= 200
+    c = np.array([0, 0, 1 / p["J2"]])
+    ref = _expm_response(A, np.zeros(3), np.array([p["T0"], 0, 0]), p["tau"], res.t) @ c
+    assert np.max(np.abs(res["load.omega"] - ref)) / np.max(np.abs(ref)) <= 1e-5
+
+
+def _amplification(method, z):
+    """|y1/y0| of one step of scipy's own solver on y' = z*y with h = 1 (independent of the tableau algebra)."""
+    solver = SOLVERS[method](lambda t, y: z * y, 0.0, np.array([1.0 + 0j]), 10.0, first_step=1.0, max_step=1.0,
+                             rtol=1e10, atol=1e10)
+    solver.step()
+    return abs(solver.y[0])
+
+
+@pytest.mark.parametrize("method", ["RK45", "DOP853"])
+@pytest.mark.parametrize("angle", [np.pi, 2 * np.pi / 3])
+def test_explicit_stability_radius_is_the_edge_of_the_methods_stability_domain(method, angle):
+    from multipole.bench import rk_stability_radius
+    r = rk_stability_radius(method, angle)
+    assert 2.0 < r < 8.0
+    assert _amplification(method, 0.99 * r * np.exp(1j * angle)) <= 1.0
+    assert _amplification(method, 1.01 * r * np.exp(1j * angle)) > 1.0
+    if angle == np.pi and method == "RK45":
+        assert r == pytest.approx(3.31, abs=0.02)       # Dormand–Prince 5(4) on the negative real axis
+
+
+# -- 2. parametric excitation (Mathieu) -------------------------------------------------------------
+
+def _monodromy(delta, eps, text_fn=S.mathieu_oscillator):
+    cols = []
+    for q0, v0 in ((1.0, 0.0), (0.0, 1.0)):
+        sc = scene(text_fn(delta=delta, eps=eps, periods=1, q0=q0, v0=v0))
+        res = pipeline.run(sc, solver="DOP853", rtol=1e-11, atol=1e-13, progress=False)
+        cols.append([res["spring.q"][-1], res["body.v"][-1]])
+    return np.array(cols).T
+
+
+EPS = 0.2
+LOW, HIGH = S.mathieu_boundaries(EPS)
+
+
+@pytest.mark.parametrize("delta", [0.10, LOW - 0.015, LOW + 0.015, 0.25, HIGH - 0.015, HIGH + 0.015, 0.45])
+def test_mathieu_stability_matches_the_first_instability_tongue(delta):
+    M = _monodromy(delta, EPS)
+    assert np.linalg.det(M) == pytest.approx(1.0, abs=1e-8)       # Liouville: conservative, area-preserving
+    unstable = abs(np.trace(M)) > 2.0                             # a Floquet multiplier outside the unit circle
+    assert unstable == (LOW < delta < HIGH)
+
+
+def test_mathieu_floquet_multipliers_match_a_hand_written_model():
+    delta = 0.25
+    M = _monodromy(delta, EPS)
+
+    def f(t, y):
+        return [y[1], -(delta + EPS * np.cos(t)) * y[0]]
+    ref = np.array([solve_ivp(f, (0, 2 * np.pi), y0, rtol=1e-12, atol=1e-14, method="DOP853").y[:, -1]
+                    for y0 in ([1, 0], [0, 1])]).T
+    assert np.allclose(M, ref, atol=1e-8)
+    # growth rate at the tongue's centre, first-order averaging with x = a cos(t/2) + b sin(t/2):
+    # a' = -eps*b/2, b' = -eps*a/2, so the amplitude grows like exp(eps*t/2)
+    mu = np.max(np.abs(np.linalg.eigvals(M)))
+    assert np.log(mu) / (2 * np.pi) == pytest.approx(EPS / 2, rel=0.05)
+
+
+def test_mathieu_amplitude_grows_only_inside_the_tongue():
+    for delta, grows in ((0.25, True), (0.40, False)):
+        res = pipeline.run(scene(S.mathieu_oscillator(delta=delta, eps=EPS, periods=20)), progress=False)
+        q = np.abs(res["spring.q"])
+        last = q[res.t >= res.t[-1] - 2 * np.pi].max()
+        assert (last > 50) == grows and (last < 3) == (not grows)
+
+
+# -- 3. stick-slip -----------------------------------------------------------------------------------
+
+def _stick_slip_error(**kw):
+    sc = scene(S.stick_slip(**kw))
+    res = pipeline.run(sc, progress=False)
+    xe, ve, info = S.stick_slip_exact(res.t, **params(sc))
+    x = res["spring.deflection"]
+    return res, np.max(np.abs(x - xe)) / np.max(np.abs(xe)), ve, info
+
+
+def test_stick_slip_holds_the_stick_phases_and_approaches_the_exact_solution():
+    res, err, ve, info = _stick_slip_error()               # v_reg = 1e-6, v_s = 1e-4 m/s
+    assert res.solver in IMPLICIT and not res.events
+    assert err <= 2e-3
+    v = res["body.v"]
+    # inside the exact stick phases (5 ms margin at the transitions) the mass moves with the belt
+    t = res.t
+    tau = np.mod(t - info["t_break"], info["period"])
+    stick = (t < info["t_break"] - 5e-3) | ((t > info["t_break"]) & (tau > info["t_slip"] + 5e-3)
+                                            & (tau < info["period"] - 5e-3))
+    assert stick.sum() > 0.3 * len(t)
+    assert np.max(np.abs(v[stick] - 0.1)) <= 1e-4
+    # no step-size collapse: the regularised model needs a few hundred steps per stick-slip cycle
+    assert res.stats["steps"] <= 600 * t[-1] / info["period"]
+    _, coarse, _, _ = _stick_slip_error(v_reg=1e-5, v_s=1e-3)
+    assert coarse / err >= 5                                 # the error is the regularisation's
+
+
+# -- 4. slack rope -------------------------------------------------------------------------------------
+
+def test_slack_rope_switches_are_events_at_the_exact_times_and_energy_is_conserved():
+    sc = scene(S.slack_rope())
+    p = params(sc)
+    res = pipeline.run(sc, progress=False)
+    times = np.array([t for t, _ in res.events])
+    assert len(times) >= 10 and all("rope.q" in text for _, text in res.events)
+    assert res.stats["segments"] == len(times) + 1                  # one integrator restart per switch
+    assert np.allclose(times, S.slack_rope_events(len(times), **p), rtol=0, atol=1e-7)
+    q, v = res["rope.q"], res["load.v"]
+    E = 0.5 * p["m"] * v**2 + p["m"] * p["g"] * q + 0.5 * p["k"] * np.minimum(q, 0) ** 2
+    assert np.max(np.abs(E - E[0])) / abs(E[0]) <= 1e-7
+    assert np.allclose(res["rope.p.e"], p["k"] * np.minimum(q, 0), rtol=1e-12, atol=1e-9)
+
+
+# -- 5. and 9. slider-crank through its dead centres, state choice ----------------------------------------
+
+def test_slider_crank_passes_the_dead_centres_and_closes_the_energy_balance():
+    sc = scene(S.slider_crank())
+    p = params(sc)
+    res = pipeline.run(sc, progress=False)
+    w, phi, vp = res["flywheel.omega"], res["crank.q"], res["piston.v"]
+    assert phi[-1] / (2 * np.pi) >= 90                               # through ~200 dead centres
+    x = S.slider_crank_position(phi, **p)
+    kinetic = 0.5 * p["J"] * w**2 + 0.5 * p["m"] * vp**2
+    work = -p["F0"] * (x - x[0])                                      # work of the piston force
+    assert np.max(np.abs(kinetic - kinetic[0] - work)) / kinetic[0] <= 1e-7
+    r, l = p["r"], p["l"]
+    ratio = -r * np.sin(phi) - r**2 * np.sin(phi) * np.cos(phi) / np.sqrt(l**2 - (r * np.sin(phi)) ** 2)
+    assert np.allclose(vp, ratio * w, rtol=1e-9, atol=1e-9)
+    w_max = np.sqrt(2 * (kinetic[0] + 2 * r * p["F0"]) / p["J"])   # no blow-up: bounded by the energy
+    assert np.all(np.isfinite(w)) and w.max() <= w_max and w.min() > 0
+
+
+def test_state_choice_integrates_the_crank_and_prefer_state_overrides_it():
+    an = pipeline.check(scene(S.slider_crank()))
+    assert [s.name for s in an.demoted] == ["piston.p"]
+    assert "flywheel.p" in [s.name for s in an.states]
+    sc = scene(S.slider_crank(prefer="piston.p"))
+    an = pipeline.check(sc)
+    assert [s.name for s in an.demoted] == ["flywheel.p"]
+    assert "piston.p" in [s.name for s in an.states]
+    # why the analyser avoids it: with the piston as state the flywheel speed is v/(dx/dphi),
+    # singular at the dead centre where the scene starts
+    model = pipeline.model(sc)
+    with np.errstate(all="ignore"):
+        try:
+            f = model.rhs(0.0, model.x0 + 1e-3)
+            singular = not np.all(np.isfinite(f))
+        except ZeroDivisionError:
+            singular = True
+        x = model.x0.copy()
+        x[model.state_names.index("crank.q")] = 1e-7
+        x[model.state_names.index("piston.p")] = 1e-3
+        near = model.rhs(0.0, x)
+    assert singular or np.max(np.abs(near)) > 1e6
+
+
+# -- 6. long horizon: energy drift and the Gauss–Legendre integrator ----------------------------------------
+
+def _energy(res, p):
+    return (0.5 * p["m1"] * res["m1.v"]**2 + 0.5 * p["m2"] * res["m2.v"]**2
+            + 0.5 * p["k1"] * res["k1.deflection"]**2 + 0.5 * p["k2"] * res["k2.deflection"]**2)
+
+
+def test_gl4_keeps_the_energy_bounded_where_runge_kutta_drifts():
+    sc = scene(S.two_mass_oscillator(periods=100))
+    p = params(sc)
+    drift = {}
+    for solver, rtol in (("GL4", 1e-4), ("RK45", 1e-6)):
+        res = pipeline.run(sc, solver=solver, rtol=rtol, atol=rtol * 1e-3, progress=False)
+        dE = np.abs(_energy(res, p) / _energy(res, p)[0] - 1)
+        n = len(dE) // 10
+        drift[solver] = (dE[:n].max(), dE[-n:].max(), dE[-1])
+    first, last, end = drift["GL4"]
+    assert end <= 1e-12                              # at the step points: conserved to round-off
+    assert last <= 2 * first + 1e-12                  # in between (dense output): bounded, no growth
+    first, last, end = drift["RK45"]
+    assert last >= 5 * first and end >= 1e-6          # Runge–Kutta: grows about linearly in time
+
+
+def test_gauss_legendre_tableau_is_the_collocation_method():
+    A, b, c = gauss_legendre_tableau(2)
+    r3 = np.sqrt(3)
+    assert np.allclose(c, [0.5 - r3 / 6, 0.5 + r3 / 6])
+    assert np.allclose(A, [[0.25, 0.25 - r3 / 6], [0.25 + r3 / 6, 0.25]])
+    assert np.allclose(b, [0.5, 0.5])
+    A1, b1, c1 = gauss_legendre_tableau(1)                # implicit midpoint rule
+    assert np.allclose(A1, [[0.5]]) and np.allclose(b1, [1]) and np.allclose(c1, [0.5])
+
+
+def _pendulum(t, y):
+    return np.array([y[1], -np.sin(y[0])])
+
+
+def test_gl4_has_order_four_and_scipy_counters():
+    ref = solve_ivp(_pendulum, (0, 10), [2.0, 0.0], method="DOP853", rtol=1e-13, atol=1e-14).y[:, -1]
+    errs = []
+    for h in (0.2, 0.1):
+        sol = solve_ivp(_pendulum, (0, 10), [2.0, 0.0], method=GL4, rtol=1e3, atol=1e3, first_step=h, max_step=h)
+        errs.append(np.max(np.abs(sol.y[:, -1] - ref)))
+    assert np.log2(errs[0] / errs[1]) == pytest.approx(4, abs=0.3)
+    solver = GL4(_pendulum, 0.0, np.array([2.0, 0.0]), 10.0, rtol=1e-8, atol=1e-10)
+    while solver.status == "running":
+        solver.step()
+        dense = solver.dense_output()
+        assert np.allclose(dense(solver.t), solver.y, rtol=0, atol=1e-13 * np.max(np.abs(solver.y)))
+        assert np.allclose(dense(solver.t_old), dense.__call__(np.array([solver.t_old]))[:, 0])
+    assert solver.status == "finished"
+    assert solver.nfev > 0 and solver.njev >= 1 and solver.nlu >= 1 and solver.newton_iterations > 0
+    assert np.max(np.abs(solver.y - ref)) <= 1e-6
+
+
+def test_gauss_legendre_conserves_a_quadratic_invariant_with_adaptive_steps():
+    w = 2 * np.pi
+
+    def f(t, y):
+        return np.array([y[1], -w * w * y[0]])
+    for s in (1, 2, 3):
+        sol = solve_ivp(f, (0, 20), [1.0, 0.0], method=GaussLegendre, stages=s, rtol=1e-5, atol=1e-8)
+        E = 0.5 * sol.y[1] ** 2 + 0.5 * w * w * sol.y[0] ** 2
+        assert sol.success and np.max(np.abs(E / E[0] - 1)) <= 1e-12
+
+
+def test_gl4_is_a_registered_implicit_solver():
+    assert SOLVERS["GL4"] is GL4 and "GL4" in IMPLICIT
+    sc = scene(S.two_mass_oscillator(periods=2))
+    res = simulate(pipeline.model(sc), 3.0, 0.01, "GL4", 1e-8, 1e-11, progress=False)
+    p = params(sc)
+    exact = S.linear_response(S._two_mass_matrix(p), S._two_mass_x0(p), [0, 1 / p["m1"], 0, 0], t=res.t)
+    assert np.max(np.abs(res["m1.v"] - exact)) <= 1e-6
+    assert res.stats["njev"] >= 1 and res.stats["nlu"] >= 1
+
+
+# -- 7. differentiated step ------------------------------------------------------------------------------
+
+def test_step_into_rigid_storage_is_a_diagnostic_not_a_spike():
+    sc = scene(S.differentiated_step())
+    an = pipeline.check(sc)
+    assert [d.code for d in an.errors] == ["input_differentiation"]
+    assert "step" in an.errors[0].message and an.errors[0].fix
+    with pytest.raises(IllPosedError):
+        pipeline.run(sc, progress=False)
+
+
+def test_smooth_rise_into_rigid_storage_gives_the_effective_inertia_torque():
+    sc = scene(S.differentiated_step(smooth=True))
+    res = pipeline.run(sc, progress=False)
+    w0, tau, J1, J2, i = (params(sc)[k] for k in ("w0", "tau", "J1", "J2", "i"))
+    torque = (J1 + J2 / i**2) * w0 / tau * np.exp(-res.t / tau)          # J_eff * d(omega)/dt
+    assert np.allclose(-res["drive.p.e"], torque, rtol=1e-9, atol=1e-9)
+    assert np.allclose(res["load.omega"], w0 / i * (1 - np.exp(-res.t / tau)), rtol=1e-9, atol=1e-9)
+
+
+# -- 8. nonlinear algebraic loop ----------------------------------------------------------------------------
+
+def test_nonlinear_loop_is_solved_by_newton_along_the_whole_run():
+    sc = scene(S.nonlinear_loop())
+    p = params(sc)
+    eq = pipeline.equations(sc)
+    assert any(d.code == "algebraic_loop" and "nonlinear" in d.message for d in eq.diagnostics)
+    res = pipeline.run(sc, progress=False)
+    s = res.stats
+    assert s["newton_solves"] >= s["nfev"]                       # every evaluation solved the loop
+    assert s["newton_iterations"] / s["newton_solves"] <= 6      # warm-started Newton converges fast
+
+    def force(t, v):
+        vb = p["V"] * np.sin(p["w"] * t)
+        u = brentq(lambda u: p["d1"] * (vb - u) + p["k1"] * (vb - u) ** 3 - p["a2"] * np.sinh((u - v) / p["b2"]),
+                   -50, 50, xtol=1e-15)
+        return p["a2"] * np.sinh((u - v) / p["b2"])
+    ref = solve_ivp(lambda t, y: [force(t, y[0]) / p["m"]], (0, res.t[-1]), [0.0], t_eval=res.t,
+                    rtol=1e-11, atol=1e-13)
+    assert np.max(np.abs(res["body.v"] - ref.y[0])) <= 1e-7
+    assert np.allclose(res["d_1.force"], res["d_2.force"], rtol=1e-9, atol=1e-9)
+    slip = p["V"] * np.sin(p["w"] * res.t) - res["body.v"]
+    assert np.ptp(slip) > 2.0                                     # a wide range of operating points

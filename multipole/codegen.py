@@ -261,6 +261,66 @@ class _Writer:
                 f"        return (np.array([{', '.join(P(r) for r in b.residuals)}]), np.array([{rows}]))",
                 f"{lhs} newton(_blk{k}, _guess, {k}, _stats).tolist()"]
 
+    def affine_rows(self):
+        """Rows of ``M`` with ``rhs = M @ [x, u, 1]``, or None where the model is not affine.
+
+        Affine means: every step of the right-hand side is a sum of constant multiples of states,
+        inputs that depend on time only, and constants (springs, masses, dampers, ideal gears).
+        Returns ``(rows, inputs)``: per derivative a ``{column: coefficient}`` map, and the input
+        symbols in column order (after the states; the last column is the constant 1).
+        """
+        n = len(self.states)
+        units = _closure(self.units, self.eq.derivatives)
+        if any(u.kind != "assign" for u in units):
+            return None
+        used = set().union(*(u.deps for u in units), *(sp.sympify(d).free_symbols for d in self.eq.derivatives))
+        inputs = [u for u, e in self.eq.inputs.items() if u in used]
+        if any(sp.sympify(self.eq.inputs[u]).xreplace(self.pvals).free_symbols - {T} for u in inputs):
+            return None
+        one = n + len(inputs)
+        col: dict = {s: {i: 1.0} for i, s in enumerate(self.states)}
+        col.update({u: {n + k: 1.0} for k, u in enumerate(inputs)})
+
+        def combine(expr):
+            terms = _affine_terms(sp.sympify(expr).xreplace(self.pvals))
+            if terms is None:
+                return None
+            acc: dict = {}
+            for sym, c in terms:
+                src = {one: 1.0} if sym is None else col.get(sym)
+                if src is None:
+                    return None
+                for j, v in src.items():
+                    acc[j] = acc.get(j, 0.0) + c * v
+            return {j: v for j, v in acc.items() if v != 0.0}
+
+        for u in units:
+            acc = combine(u.exprs[0])
+            if acc is None:
+                return None
+            col[u.variables[0]] = acc
+        rows = [combine(d) for d in self.eq.derivatives]
+        return None if any(r is None for r in rows) else (rows, inputs)
+
+    def affine_rhs(self, affine) -> list:
+        """``rhs`` as one sparse product ``M @ [x, u, 1]`` (see :meth:`affine_rows`)."""
+        rows, inputs = affine
+        n = len(self.states)
+        data, indices, indptr = [], [], [0]
+        for r in rows:
+            for j in sorted(r):
+                indices.append(j)
+                data.append(r[j])
+            indptr.append(len(indices))
+        shape = (n, n + len(inputs) + 1)
+        ext = ", ".join([self.names[u] for u in inputs] + ["1.0"])
+        head = [f"_M = csr_array((np.array({data!r}), np.array({indices!r}), np.array({indptr!r})), shape={shape!r})",
+                "", "def rhs(t, x):",
+                f'    """d/dt of the states {", ".join(self.eq.state_names)} as M @ [x, inputs, 1]."""',
+                "    _stats['rhs_calls'] += 1"]
+        body = [f"    {self.names[u]} = {self.P(self.eq.inputs[u])}" for u in inputs]
+        return head + body + [f"    return _M @ np.concatenate((x, [{ext}]))", ""]
+
     def function(self, name, doc, needed, ret, extra=()) -> list:
         units = _closure(self.units, needed)
         return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + self.prologue(units, needed) + \
@@ -322,21 +382,55 @@ class _Writer:
         return {j: " + ".join(t) for j, t in acc.items()}
 
 
+def _affine_terms(expr):
+    """``[(symbol or None, coefficient)]`` with ``expr == Σ coefficient·symbol`` (None: the constant
+    1); None if ``expr`` is not such a sum with numeric coefficients."""
+    for candidate in (expr, sp.expand(expr)):
+        terms = []
+        for term in sp.Add.make_args(candidate):
+            c, rest = term.as_coeff_Mul()
+            if not (c.is_Number and math.isfinite(float(c))):
+                break
+            if rest == 1:
+                terms.append((None, float(c)))
+            elif rest.is_Symbol:
+                terms.append((rest, float(c)))
+            else:
+                break
+        else:
+            return terms
+    return None
+
+
 def _diff(expr, w):
     split = linear_coefficient(expr, w)
     return split[0] if split is not None else sp.diff(expr, w)
 
 
+#: From this many states on, an affine right-hand side is generated as one sparse matrix product:
+#: flat scalar code costs about 0.15 µs per line, the product about 3 ns per nonzero plus 6 µs.
+AFFINE_MIN_STATES = 40
+
+
 def generate(eq: Equations, outputs=()) -> str:
-    """Python source of the model functions for ``eq``."""
+    """Python source of the model functions for ``eq``.
+
+    ``rhs`` is flat scalar code; for an affine model with at least :data:`AFFINE_MIN_STATES`
+    states it is a sparse product ``M @ [x, u(t), 1]`` instead (same values, less time per call).
+    """
     w = _Writer(eq)
     N, P = w.names, w.P
     src = ["import math", "import numpy as np", "",
            "_stats = {'rhs_calls': 0, 'jac_calls': 0, 'newton_iterations': 0, 'newton_solves': 0}",
            f"_guess = {[[0.0] * len(b.variables) for b in eq.blocks]!r}", ""]
-    ders = ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
-    src += w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives,
-                      f"np.array([{ders}])", ["    _stats['rhs_calls'] += 1"])
+    affine = w.affine_rows() if len(w.states) >= AFFINE_MIN_STATES else None
+    if affine is not None:
+        src.insert(2, "from scipy.sparse import csr_array")
+        src += w.affine_rhs(affine)
+    else:
+        ders = ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
+        src += w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives,
+                          f"np.array([{ders}])", ["    _stats['rhs_calls'] += 1"])
     out_exprs = [eq.output(o) for o in outputs]
     needed = set().union(*(e.free_symbols for e in out_exprs)) if out_exprs else set()
     src += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed,

@@ -13,7 +13,7 @@ from scipy.linalg import expm
 from scipy.optimize import brentq
 
 from elements import scenes as S
-from multipole import IllPosedError, pipeline
+from multipole import IllPosedError, codegen, pipeline
 from multipole.bench import explicit_stability_bound
 from multipole.netlist import loads
 from multipole.simulate import IMPLICIT, SOLVERS, simulate
@@ -37,11 +37,14 @@ def test_hard_scene_files_are_written_by_the_builders():
     assert files == S.HARD_SCENES, "regenerate with: python benchmarks/make_hard_scenes.py"
 
 
-@pytest.mark.parametrize("text", [S.two_mass_oscillator(), S.stiff_drive_train(), S.mass_spring_chain(5)],
-                         ids=["two_mass", "stiff_drive_train", "chain5"])
+@pytest.mark.parametrize("text", [S.two_mass_oscillator(), S.stiff_drive_train(), S.mass_spring_chain(5),
+                                  S.mass_spring_chain(30)],
+                         ids=["two_mass", "stiff_drive_train", "chain5", "chain30_sparse_product"])
 def test_generated_rhs_and_jacobian_equal_the_hand_written_physics(text):
     sc = scene(text)
     model = pipeline.model(sc)
+    # 60 states: the affine right-hand side is generated as one sparse product; 10 states: flat code
+    assert ("csr_array" in model.source) == (len(model.x0) >= codegen.AFFINE_MIN_STATES)
     hand = S.hand_model(sc)
     idx = hand.permutation(model.state_names)
     assert np.array_equal(model.x0[idx], hand.x0)

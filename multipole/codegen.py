@@ -17,17 +17,12 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from .equations import Equations, linear_coefficient
-from .errors import ModelError
+from .errors import ModelError, NewtonError
 from .primitives import T
 
 
-class NewtonError(ArithmeticError):
-    """Newton's method did not converge in an algebraic loop."""
-
-
-def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, max_iter: int = 60):
-    """Solve ``fun(z) = (F, J)`` for ``F = 0`` from the last solution ``store[k]`` (damped)."""
-    z = np.array(store[k], dtype=float)
+def _damped_newton(fun, z, tol: float, max_iter: int):
+    """Damped Newton from ``z``: ``(solution, iterations)``, or ``(None, iterations)`` if it fails."""
     F, J = fun(z)
     norm = np.linalg.norm(F)
     for it in range(1, max_iter + 1):
@@ -41,11 +36,33 @@ def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, max_iter: 
             lam *= 0.5
         z, F, J, norm = z_new, F_new, J_new, np.linalg.norm(F_new)
         if np.max(np.abs(lam * dz)) <= tol * (1.0 + np.max(np.abs(z))) or norm == 0.0:
-            stats["newton_iterations"] += it
+            return z, it
+    return None, max_iter
+
+
+#: Newton iterations allowed from the warm start, and then from zero
+NEWTON_MAX_ITER = (60, 200)
+
+
+def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12):
+    """Solve ``fun(z) = (F, J)`` for ``F = 0`` (damped Newton) for algebraic loop ``k``.
+
+    Starts from the last solution ``store[k]``; a trial state of the integrator far from the last
+    one (a rejected step) can put that start on the flat side of a steep law (sinh, cubic), so a
+    failed warm start is retried once from zero before giving up.
+    """
+    total = 0
+    for z0, max_iter in zip((store[k], np.zeros(len(store[k]))), NEWTON_MAX_ITER):
+        z, it = _damped_newton(fun, np.array(z0, dtype=float), tol, max_iter)
+        total += it
+        if z is not None:
+            stats["newton_iterations"] += total
             stats["newton_solves"] += 1
             store[k] = z
             return z
-    raise NewtonError(f"Newton's method did not converge in algebraic loop {k} (|F| = {norm:.3g})")
+    norm = np.linalg.norm(fun(np.asarray(store[k], dtype=float))[0])
+    raise NewtonError(f"Newton's method did not converge in algebraic loop {k} "
+                      f"(|F| = {norm:.3g} at the last solution, {total} iterations)")
 
 
 class _Printer(PythonCodePrinter):

@@ -34,3 +34,7 @@ class ModelError(MultipoleError):
 
 class IllPosedError(MultipoleError):
     """A structurally ill-posed network asked to produce equations (see ``multipole check``)."""
+
+
+class NewtonError(ArithmeticError):
+    """Newton's method did not converge in an algebraic loop (at one evaluation of the model)."""

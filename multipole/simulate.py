@@ -22,7 +22,7 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 from scipy.optimize import brentq
 
-from .errors import MultipoleError
+from .errors import MultipoleError, NewtonError
 from .solvers import GL4
 
 SOLVERS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA, "GL4": GL4}
@@ -173,11 +173,12 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     t = 0.0
     start = time.perf_counter()
     forced: dict = {}
+    rhs, newton_failures = _rejecting_unsolvable_loops(model)
     while n and k_out < len(t_grid):
         kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
         if solver in IMPLICIT:
             kw["jac"] = model.jac
-        ode = cls(model.rhs, t, x, t_end, **kw)
+        ode = cls(rhs, t, x, t_end, **kw)
         stats["segments"] += 1
         g_sign = np.sign(np.array(model.switches(t, x), dtype=float))
         for k, sgn in forced.items():      # just past an event: the new side's sign
@@ -190,6 +191,9 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
             except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
                 raise SimulationError("step_failed", f"integration failed at t = {ode.t:.6g} s: {exc}") from None
             if ode.status == "failed":
+                if newton_failures:
+                    msg += (f"; Newton's method failed {len(newton_failures)} times in an algebraic loop "
+                            f"(last: {newton_failures[-1]})")
                 raise SimulationError("step_failed", f"{solver} failed at t = {ode.t:.6g} s: {msg}",
                                       "try solver auto or Radau, or tighter tolerances")
             stats["steps"] += 1
@@ -223,6 +227,8 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     bar.close()
     stats["wall_time"] = time.perf_counter() - start
     stats.update({k: v for k, v in model.stats.items()})
+    if newton_failures:
+        stats["newton_failures"] = len(newton_failures)
     dense_calls = stats.pop("dense_calls")
     if solver in _STAGES:
         extra = dense_calls * (3 if solver == "DOP853" else 0)
@@ -236,6 +242,24 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     outputs = {name: outs[:, k] for k, name in enumerate(model.output_names)}
     units = dict(zip(model.output_names, getattr(model, "output_units", [])))
     return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events, units)
+
+
+def _rejecting_unsolvable_loops(model):
+    """``(rhs, failures)``: the model's right-hand side, returning NaN where an algebraic loop has
+    no Newton solution at a trial state, so that the integrator rejects that step and retries a
+    shorter one (a NaN error estimate is a rejection); the messages are kept in ``failures``.
+    A failure at an accepted state still ends the run, with the Newton message."""
+    failures: list = []
+    if "newton(" not in getattr(model, "source", ""):
+        return model.rhs, failures
+
+    def rhs(t, x):
+        try:
+            return model.rhs(t, x)
+        except NewtonError as exc:
+            failures.append(str(exc))
+            return np.full(len(x), np.nan)
+    return rhs, failures
 
 
 def _accumulate(stats, ode, solver):

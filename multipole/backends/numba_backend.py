@@ -93,44 +93,47 @@ _SIG = "types.void(types.float64, types.voidptr, types.voidptr, types.voidptr)"
 #: and the kernels' LU because numba compiles numpy's array functions slowly
 _NEWTON = '''@njit(cache=True)
 def _newton{k}(w, a):
-    """Damped Newton for the loop {k}, warm-started from w[{off}:{end}]; NaN if it fails."""
+    """Damped Newton for the loop {k}, warm-started from w[{off}:{end}], then from zero; NaN if both fail."""
     z = np.empty({n})
     z_new = np.empty({n})
     dz = np.empty({n})
     F = np.empty({n})
     J = np.empty(({n}, {n}))
     piv = np.empty({n}, dtype=np.int64)
-    for i in range({n}):
-        z[i] = w[{off} + i]
-    _blk{k}(z, a, F, J)
-    norm = _k.norm2(F)
-    for it in range(1, 61):
+    total = 0
+    for attempt in range(2):
         for i in range({n}):
-            dz[i] = F[i]
-        _k.lu_factor(J, piv)
-        _k.lu_solve(J, piv, dz)
-        lam = 1.0
-        while True:
+            z[i] = w[{off} + i] if attempt == 0 else 0.0
+        _blk{k}(z, a, F, J)
+        norm = _k.norm2(F)
+        for it in range(1, {max_warm} + 1 if attempt == 0 else {max_zero} + 1):
+            total += 1
             for i in range({n}):
-                z_new[i] = z[i] - lam * dz[i]
-            _blk{k}(z_new, a, F, J)
-            norm_new = _k.norm2(F)
-            if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
-                break
-            lam *= 0.5
-        step = 0.0
-        big = 0.0
-        for i in range({n}):
-            step = max(step, abs(lam * dz[i]))
-            z[i] = z_new[i]
-            big = max(big, abs(z[i]))
-        norm = norm_new
-        if step <= 1e-12 * (1.0 + big) or norm == 0.0:
-            w[0] += it
-            w[1] += 1
+                dz[i] = F[i]
+            _k.lu_factor(J, piv)
+            _k.lu_solve(J, piv, dz)
+            lam = 1.0
+            while True:
+                for i in range({n}):
+                    z_new[i] = z[i] - lam * dz[i]
+                _blk{k}(z_new, a, F, J)
+                norm_new = _k.norm2(F)
+                if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
+                    break
+                lam *= 0.5
+            step = 0.0
+            big = 0.0
             for i in range({n}):
-                w[{off} + i] = z[i]
-            return z
+                step = max(step, abs(lam * dz[i]))
+                z[i] = z_new[i]
+                big = max(big, abs(z[i]))
+            norm = norm_new
+            if step <= 1e-12 * (1.0 + big) or norm == 0.0:
+                w[0] += total
+                w[1] += 1
+                for i in range({n}):
+                    w[{off} + i] = z[i]
+                return z
     w[2] += 1
     for i in range({n}):
         z[i] = math.nan
@@ -208,7 +211,8 @@ class _Writer(codegen._Writer):
             src += [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
             src += [f"    _F[{i}] = {P(r)}" for i, r in enumerate(res)]
             src += [f"    _J[{i}, {j}] = {P(Jz[i, j])}" for i in range(n) for j in range(n)]
-            src += ["", _NEWTON.format(k=k, off=off, end=off + n, n=n)]
+            src += ["", _NEWTON.format(k=k, off=off, end=off + n, n=n, max_warm=codegen.NEWTON_MAX_ITER[0],
+                                              max_zero=codegen.NEWTON_MAX_ITER[1])]
             self.blocks_src += src
         deps = self.deps[k]
         lines = [f"    _a = np.empty({max(len(deps), 1)})"] + [f"    _a[{i}] = {N[d]}" for i, d in enumerate(deps)]
@@ -484,6 +488,8 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
         work.X[:] = np.zeros((grid.size, 0))
     bar.close()
     newton = {"newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1])}   # before the outputs
+    if work.w[2]:
+        newton["newton_failures"] = int(work.w[2])
     Y = np.zeros((grid.size, len(outputs)))
     if outputs:
         K.sample(module.outputs.address, work.w, grid, work.X, Y)

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import ElementType, Network, Param, Quantity, register
-from multipole.primitives import C, I, R, TF, Se, Sf, junction_a, junction_b
+from multipole import C, I, R, TF, ElementType, Network, Param, Quantity, Se, Sf, junction_a, junction_b, register
 
 _C, _D, _L = (sp.Symbol(n) for n in ("c", "d", "L"))
 

@@ -35,8 +35,8 @@ import math
 
 import sympy as sp
 
-from multipole import LAW_Q, ElementType, ModelError, Network, Param, Quantity, register
-from multipole.primitives import C, R, TF, Primitive, Tap, junction_a, junction_b
+from multipole import (LAW_Q, TF, C, ElementType, ModelError, Network, Param, Primitive, Quantity, R, Tap, junction_a,
+                       junction_b, register)
 
 from .basic import inertia
 

@@ -33,8 +33,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import ElementType, Network, Param, Quantity, register
-from multipole.primitives import GY, I, R, Se, junction_b
+from multipole import GY, I, R, ElementType, Network, Param, Quantity, Se, junction_b, register
 
 from .piezo import literal_zero   # shared "leave the part out" rule of this library
 

@@ -51,9 +51,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import ElementType, Network, Param, Quantity, register
-from multipole.errors import ModelError
-from multipole.primitives import CField, I, R, junction_a, junction_b
+from multipole import CField, I, R, ElementType, ModelError, Network, Param, Quantity, junction_a, junction_b, register
 
 _NAMES = ("k_P", "delta_P", "C_P", "m", "R")
 _S = {name: sp.Symbol(name) for name in _NAMES}

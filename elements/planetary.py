@@ -25,8 +25,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import ElementType, ModelError, Network, Param, Quantity, register
-from multipole.primitives import I, junction_a, junction_b
+from multipole import I, ElementType, ModelError, Network, Param, Quantity, junction_a, junction_b, register
 
 from .gears import spur_stage
 

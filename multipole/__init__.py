@@ -15,7 +15,7 @@ from .equations import Equations, assemble
 from .errors import IllPosedError, ModelError, MultipoleError, NetlistError
 from .network import FlatNetwork, Network, Quantity, flatten
 from .primitives import T, LAW_F, LAW_P, LAW_Q
-from .primitives import C, CField, GY, I, MTF, R, TF, Se, Sf, Tap, junction_a, junction_b
+from .primitives import C, CField, GY, I, MTF, R, TF, Primitive, Se, Sf, Tap, junction_a, junction_b
 
 from .codegen import Model, compile_model
 from .simulate import Result, simulate
@@ -28,6 +28,6 @@ __all__ = [
     "REQUIRED", "ElementType", "Param", "catalogue", "register", "Analysis", "analyse", "DIAGNOSTICS",
     "Diagnostic", "DOMAINS", "Domain", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
-    "GY", "I", "MTF", "R", "TF", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
+    "GY", "I", "MTF", "R", "TF", "Primitive", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
     "LAW_Q", "Model", "compile_model", "Result", "simulate", "Scene", "load", "loads", "pipeline",
 ]

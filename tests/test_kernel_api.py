@@ -63,3 +63,27 @@ def test_cfield_is_reciprocal_and_conservative():
     e = np.linalg.solve(np.array(S), x)
     v = m.port_values(0.0, x)
     assert np.allclose([v["cf.p1.e"], v["cf.p2.e"]], e, rtol=1e-12)
+
+
+def _imports(path):
+    """Module names imported by the Python file ``path`` (absolute and relative imports)."""
+    import ast
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            out.append("." * node.level + (node.module or ""))
+    return out
+
+
+def test_layering_kernel_never_imports_elements_and_elements_use_the_public_api():
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    kernel = {p.relative_to(root).as_posix(): _imports(p) for p in (root / "multipole").rglob("*.py")}
+    bad = {p: [m for m in mods if m.split(".")[0] == "elements"] for p, mods in kernel.items()}
+    assert not {p: m for p, m in bad.items() if m}, "the kernel must not import the element library"
+    library = {p.name: _imports(p) for p in (root / "elements").glob("*.py")}
+    private = {p: [m for m in mods if m.startswith("multipole.")] for p, mods in library.items()}
+    assert not {p: m for p, m in private.items() if m}, "elements must import from the package `multipole` only"

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from . import pipeline
 from .catalogue import catalogue
@@ -59,11 +60,34 @@ def cmd_equations(args) -> int:
     elif args.format == "latex":
         print(eq.to_latex(scene.outputs))
     else:
-        print(pipeline.model(scene).source)
+        source = pipeline.model(scene).source
+        if "newton(" in source:      # the Newton solver the generated code calls, so the text runs alone
+            source = "from multipole.codegen import newton\n" + source
+        print(source)
     return 0
 
 
+#: figure formats ``--plot`` and ``diagram -o`` accept (matplotlib writes them without extra packages)
+FIGURE_FORMATS = (".png", ".svg", ".pdf")
+
+
+def check_output_path(path: str | None, formats=None, option: str = "--out") -> None:
+    """Refuse, before any work is done, an output file that cannot be written."""
+    if not path:
+        return
+    target = Path(path)
+    if formats and target.suffix.lower() not in formats:
+        raise MultipoleError("bad_output", f"{option} {path}: unsupported file type {target.suffix or '(none)'!r}",
+                             f"use one of {', '.join(formats)}")
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise MultipoleError("bad_output", f"{option} {path}: folder {str(folder)!r} does not exist",
+                             "create it first or write elsewhere")
+
+
 def cmd_simulate(args) -> int:
+    check_output_path(args.out, None, "--out")
+    check_output_path(args.plot, FIGURE_FORMATS, "--plot")
     scene = load(args.file, _overrides(args.set))
     try:
         pipeline.model(scene)
@@ -170,7 +194,14 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except MultipoleError as exc:
+    except (MultipoleError, OSError) as exc:
+        if isinstance(exc, OSError):     # a file we were asked to read or write
+            exc = MultipoleError("io", f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": "),
+                                 "check the path and its permissions")
+        if getattr(args, "json", False):
+            print(json.dumps({"file": args.file, "exit_code": 2, "well_posed": False,
+                              "error": {"code": exc.code, "message": exc.message, "where": exc.where,
+                                        "fix": exc.fix}}, indent=2))
         print(str(exc), file=sys.stderr)
         return 2
 

@@ -106,14 +106,21 @@ class Equations:
             lines.append(f"  {s.name}  [{s.unit}]  initial {x0:g}")
         if self.inputs:
             lines += ["", "Inputs:"] + [f"  {u} = {e}" for u, e in self.inputs.items()]
-        lines += ["", "Parameters:"] + [f"  {p} = {v:g}" for p, v in self.params.items()]
-        small = sum(len(b.variables) for b in self.blocks) <= 400
-        if small and all(b.solution is not None for b in self.blocks):
-            lines += ["", "State equations:"]
+        lines += ["", "Parameters:"] + [f"  {p} = {v:g}" for p, v in sorted(self.params.items(), key=lambda kv: str(kv[0]))]
+        size = sum(len(b.variables) for b in self.blocks)
+        lines += ["", "State equations:"]
+        if size > 400:
+            lines.append(f"  not expanded: {size} variables; the evaluation order below computes them in turn")
+        else:
             for s, d in zip(self.states, self.derivatives):
                 lines.append(f"  d/dt {s.name} = {self.substituted(d)}")
             for name in outputs:
                 lines.append(f"  {name} = {self.substituted(self.output(name))}")
+            numeric = [b for b in self.blocks if b.solution is None]
+            if numeric:
+                names = ", ".join(str(v) for b in numeric for v in b.variables)
+                lines.append(f"  where {names} solve the algebraic loop(s) below at every evaluation "
+                             "(no closed form)")
         lines += ["", "Evaluation order (causal assignments):"]
         for b in self.blocks:
             if b.kind == "explicit":
@@ -156,12 +163,28 @@ class Equations:
         return -1
 
     def to_latex(self, outputs=()) -> str:
-        rows = []
-        for s, d in zip(self.states, self.derivatives):
-            rows.append(rf"\frac{{d}}{{dt}} {sp.latex(s.symbol)} &= {sp.latex(self.substituted(d))}")
-        for name in outputs:
-            rows.append(rf"\mathrm{{{name}}} &= {sp.latex(self.substituted(self.output(name)))}")
-        return "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
+        """The state equations and outputs as a LaTeX ``aligned`` block; names set upright, products
+        with a centred dot, so that ``shaft.q`` and ``J_1`` read as written in the netlist."""
+        pairs = [(s.symbol, self.substituted(d)) for s, d in zip(self.states, self.derivatives)]
+        pairs_out = [(name, self.substituted(self.output(name))) for name in outputs]
+        symbols = set().union(*(e.free_symbols | {x} for x, e in pairs), *(e.free_symbols for _, e in pairs_out))
+        names = {x: _latex_name(x.name) for x in symbols if isinstance(x, sp.Symbol)}
+
+        def tex(e):
+            return sp.latex(e, symbol_names=names, mul_symbol="dot")
+        rows = [rf"\frac{{d}}{{dt}} {names[x]} &= {tex(e)}" for x, e in pairs]
+        rows += [rf"{_latex_name(name)} &= {tex(e)}" for name, e in pairs_out]
+        unsolved = [v for b in self.blocks if b.solution is None for v in b.variables]
+        text = "\\begin{aligned}\n" + " \\\\\n".join(rows) + "\n\\end{aligned}"
+        if unsolved:
+            text += ("\n% " + ", ".join(map(str, unsolved)) + ": solution of the algebraic loop(s), "
+                     "computed numerically at every evaluation (see the text format)")
+        return text
+
+
+def _latex_name(name: str) -> str:
+    """A dotted netlist name as upright LaTeX text (``d_1.force`` → ``\\mathrm{d\\_1.force}``)."""
+    return r"\mathrm{" + name.replace("\\", "").replace("_", r"\_").replace(" ", r"\ ") + "}"
 
 
 # ---------------------------------------------------------------------------------------------

@@ -84,8 +84,9 @@ def linearize(eq: Equations, outputs) -> Linearization:
 def cmd_linearize(args) -> int:
     """CLI: print the state-space matrices and modes; optionally a Bode plot."""
     from . import pipeline
-    from .cli import _overrides
+    from .cli import FIGURE_FORMATS, _overrides, check_output_path
     from .netlist import load
+    check_output_path(args.bode, FIGURE_FORMATS, "--bode")
     scene = load(args.file, _overrides(args.set))
     eq = pipeline.equations(scene)
     outputs = scene.outputs or eq.state_names

@@ -106,3 +106,55 @@ def test_models_are_restored_from_the_disk_cache():
     changed = pipeline.run(load(path, {"V": "6"}), t_end=0.01, progress=False)   # other digest
     assert not changed.stats["model_cached"]
     assert np.allclose(changed["C1.v"], first["C1.v"] / 2, rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("option, value, words", [
+    ("--out", "{tmp}/missing/r.csv", "does not exist"),
+    ("--plot", "{tmp}/missing/r.png", "does not exist"),
+    ("--plot", "{tmp}/r.txt", "unsupported file type"),
+])
+def test_unwritable_outputs_are_refused_before_simulating(tmp_path, capsys, option, value, words):
+    code = main(["simulate", str(ROOT / "diagrams" / "rlc_series.yaml"), option, value.format(tmp=tmp_path),
+                 "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0] and option in err[0]
+    assert not any(tmp_path.iterdir())
+
+
+def test_check_json_reports_an_invalid_file_as_json(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: x\nelements:\n  a: {type: no_such_type}\n", encoding="utf-8")
+    code = main(["check", str(bad), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert code == 2 and data["exit_code"] == 2 and data["error"]["code"] == "unknown_type"
+    assert "bad.yaml:3" in data["error"]["where"] + data["error"]["message"]
+
+
+@pytest.mark.parametrize("name", ["drive_train.yaml", "hard/nonlinear_loop.yaml"])
+def test_latex_rows_are_well_formed_math(name, capsys):
+    """Every row of the LaTeX output parses as math (matplotlib's mathtext, an independent parser)."""
+    from matplotlib.mathtext import MathTextParser
+    assert main(["equations", str(ROOT / "diagrams" / name), "--format", "latex"]) == 0
+    text = capsys.readouterr().out
+    body = text.split("\\begin{aligned}\n")[1].split("\n\\end{aligned}")[0]
+    parser = MathTextParser("path")
+    for row in body.split(" \\\\\n"):
+        parser.parse("$" + row.replace("&=", "=") + "$")
+    assert "shaft_{" not in text and "d_{" not in text    # dotted names stay whole, not subscripted
+
+
+def test_python_output_runs_on_its_own_and_equals_the_model(capsys):
+    """The printed Python (with a Newton loop) runs in a fresh namespace and gives the model's rhs."""
+    path = ROOT / "diagrams" / "hard" / "nonlinear_loop.yaml"
+    assert main(["equations", str(path), "--format", "python"]) == 0
+    namespace: dict = {}
+    exec(capsys.readouterr().out, namespace)       # our own generated code, from our own scene
+    model = pipeline.model(load(path))
+    for t, x in ((0.3, [0.5]), (1.2, [-2.0])):
+        assert np.allclose(namespace["rhs"](t, np.array(x)), model.rhs(t, np.array(x)), rtol=1e-12, atol=0)
+
+
+def test_text_equations_say_when_a_loop_has_no_closed_form(capsys):
+    assert main(["equations", str(ROOT / "diagrams" / "hard" / "nonlinear_loop.yaml")]) == 0
+    text = capsys.readouterr().out
+    assert "d/dt body.p = d_2.p.e" in text and "no closed form" in text

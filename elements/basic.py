@@ -97,17 +97,17 @@ _TWO = {"a": "port a", "b": "port b"}
 register(ElementType(
     "inertia", lambda J, omega0: inertia(J, omega0, "rotational"),
     "rigid rotating body: ports a and b turn together, J*omega' = torque at a + torque at b", _TWO,
-    [Param("J", "kg*m^2", "moment of inertia"), Param("omega0", "rad/s", "initial angular velocity", 0.0)],
+    [Param("J", "kg*m^2", "moment of inertia", positive=True), Param("omega0", "rad/s", "initial angular velocity", 0.0)],
     {"omega": "rad/s: angular velocity", "p": "N*m*s: angular momentum (state)"}))
 register(ElementType(
     "mass", lambda m, v0: inertia(m, v0, "translational"),
     "rigid body in translation: ports a and b move together, m*v' = force at a + force at b", _TWO,
-    [Param("m", "kg", "mass"), Param("v0", "m/s", "initial velocity", 0.0)],
+    [Param("m", "kg", "mass", positive=True), Param("v0", "m/s", "initial velocity", 0.0)],
     {"v": "m/s: velocity", "p": "N*s: momentum (state)"}))
 register(ElementType(
     "spring", lambda c, x0, domain: spring(c, x0, domain),
     "linear spring: force = c*deflection, deflection' = f_a - f_b", _TWO,
-    [Param("c", "N*m/rad | N/m", "stiffness"), Param("x0", "rad | m", "initial deflection", 0.0), _DOMAIN_MECH],
+    [Param("c", "N*m/rad | N/m", "stiffness", positive=True), Param("x0", "rad | m", "initial deflection", 0.0), _DOMAIN_MECH],
     {"force": "N*m | N: effort in the spring (positive when compressed from a)",
      "deflection": "rad | m: deflection (state q)"}))
 register(ElementType(
@@ -141,13 +141,13 @@ register(ElementType(
     "rigid gear stage: f_a = i*f_b, e_b = -i*e_a (i < 0 reverses the direction)", _TWO,
     [Param("i", "-", "ratio omega_a/omega_b")]))
 register(ElementType("resistor", lambda R: resistor(R), "resistor: e_a - e_b = R*i", _TWO,
-                     [Param("R", "Ohm", "resistance")],
+                     [Param("R", "Ohm", "resistance", positive=True)],
                      {"i": "A: current from a to b", "v": "V: voltage e_a - e_b"}))
 register(ElementType("capacitor", lambda C, v0: capacitor(C, v0), "capacitor: C*(e_a - e_b)' = i", _TWO,
-                     [Param("C", "F", "capacitance"), Param("v0", "V", "initial voltage", 0.0)],
+                     [Param("C", "F", "capacitance", positive=True), Param("v0", "V", "initial voltage", 0.0)],
                      {"v": "V: voltage e_a - e_b", "i": "A: current from a to b"}))
 register(ElementType("inductor", lambda L, i0: inductor(L, i0), "inductor: L*i' = e_a - e_b", _TWO,
-                     [Param("L", "H", "inductance"), Param("i0", "A", "initial current", 0.0)],
+                     [Param("L", "H", "inductance", positive=True), Param("i0", "A", "initial current", 0.0)],
                      {"i": "A: current from a to b", "v": "V: voltage e_a - e_b"}))
 register(ElementType(
     "voltage_source", lambda value: _pin_source("voltage_source", Se(value, "electrical"), {}),

@@ -33,6 +33,7 @@ class Param:
     kind: str = "number"
     choices: tuple = ()
     law_var: str = ""
+    positive: bool = False            # a number that must be > 0 (inertia, stiffness, ...)
 
     @property
     def required(self) -> bool:

@@ -53,9 +53,10 @@ def _construct_map(loader, node):
     for k_node, v_node in node.value:
         key = loader.construct_object(k_node, deep=True)
         if not isinstance(key, (str, int, float)):
-            raise NetlistError("yaml_key", f"line {k_node.start_mark.line + 1}: keys must be plain names")
+            raise NetlistError("yaml_key", "keys must be plain names", where=f":{k_node.start_mark.line + 1}")
         if key in out:
-            raise NetlistError("duplicate_key", f"line {k_node.start_mark.line + 1}: key {key!r} appears twice")
+            raise NetlistError("duplicate_key", f"key {key!r} appears twice", "keep one of them",
+                               where=f":{k_node.start_mark.line + 1}")
         out[key] = loader.construct_object(v_node, deep=True)
         out.lines[key] = k_node.start_mark.line + 1
     return out
@@ -116,16 +117,25 @@ def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
                            f"{filename}{line}") from None
     except yaml.YAMLError as exc:
         raise NetlistError("yaml_syntax", f"invalid YAML: {exc}", "fix the YAML syntax", filename) from None
-    except NetlistError as exc:
-        exc.where = filename
+    except NetlistError as exc:          # raised while reading: ``where`` holds ":line"
+        exc.where = filename + exc.where
         raise
     return _Builder(data, filename, dict(overrides or {})).scene(text)
+
+
+def _resolve(params: dict) -> dict:
+    """{Symbol: number} of the scene parameters (they may refer to each other; no cycles)."""
+    values = {sp.Symbol(k): sp.sympify(v) for k, v in params.items()}
+    for _ in range(len(values) + 1):
+        values = {k: v.xreplace(values) for k, v in values.items()}
+    return {k: v for k, v in values.items() if v.is_number}
 
 
 class _Builder:
     def __init__(self, data, filename, overrides):
         self.data, self.file, self.overrides = data, filename, overrides
         self.used_overrides: set = set()
+        self.numbers: dict = {}
 
     def err(self, code, message, fix="", line=None, element=""):
         where = f"{self.file}:{line}" if line else self.file
@@ -191,6 +201,7 @@ class _Builder:
             others = {k: v for k, v in names.items() if k != name}
             out[name] = self.expr(value, others, f"parameter '{name}'", line)
         self.check_cycles(out)
+        self.numbers = _resolve(out)
         return out
 
     def check_cycles(self, params):
@@ -267,7 +278,13 @@ class _Builder:
     def param_value(self, p, value, symbols, line, element):
         what = f"parameter '{p.name}'"
         if p.kind == "number":
-            return self.expr(value, symbols, what, line, element)
+            expr = self.expr(value, symbols, what, line, element)
+            number = sp.sympify(expr).xreplace(self.numbers)
+            if p.positive and number.is_number and not float(number) > 0:
+                raise self.err("bad_value", f"{what} [{p.unit}] must be positive, got {float(number):g}",
+                               "give a positive value; to leave the part out, join its neighbours directly",
+                               line, element)
+            return expr
         if p.kind == "time":
             return self.expr(value, {**symbols, "t": T}, what, line, element)
         if p.kind == "law":
@@ -354,4 +371,9 @@ class _Builder:
                 out[key] = float(value)
             else:
                 out[key] = str(value)
+        if "solver" in out:
+            from .simulate import SOLVERS
+            if out["solver"] != "auto" and out["solver"] not in SOLVERS:
+                raise self.err("unknown_solver", f"unknown solver {out['solver']!r}",
+                               f"use auto or one of {', '.join(SOLVERS)}", raw.lines.get("solver"))
         return out

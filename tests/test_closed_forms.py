@@ -70,3 +70,33 @@ def test_series_rlc_step_response(solver):
     # Ohm's law and the source current follow from the same loop current
     assert np.allclose(res["R1.v"], R * res["L1.i"], rtol=1e-9, atol=1e-12)
     assert np.allclose(res["supply.i"], res["L1.i"], rtol=1e-9, atol=1e-12)
+
+
+HYDRAULIC = """
+name: hydraulic_rc
+description: Pump pressure step charging an accumulator through an orifice (hydraulic R-C)
+parameters: {P: 1.0e7, r: 1.0e9, c: 1.0e10}
+elements:
+  pump:  {type: Se, value: "P*step(t)", domain: hydraulic}
+  line:  {type: junction_b, ports: [pump, orifice, acc], signs: [1, -1, -1], domain: hydraulic}
+  orifice: {type: R, r: r, domain: hydraulic}
+  acc:   {type: C, c: c, domain: hydraulic}
+connections:
+  - [pump.p, line.pump]
+  - [line.orifice, orifice.p]
+  - [line.acc, acc.p]
+outputs: [acc.q, acc.p.e, orifice.p.f]
+simulate: {t_end: 0.5, dt_out: 0.001, rtol: 1.0e-10, atol: 1.0e-16}
+"""
+
+
+def test_hydraulic_orifice_charging_an_accumulator():
+    """Pressure step P through an orifice r [Pa·s/m³] into an accumulator of stiffness c [Pa/m³]:
+    p(t) = P·(1 − exp(−t·c/r)), q = p/c [m³], flow (P − p)/r [m³/s]; units from the hydraulic domain."""
+    P, r, c = 1.0e7, 1.0e9, 1.0e10
+    res = run(HYDRAULIC)
+    p = P * (1 - np.exp(-res.t * c / r))
+    assert np.max(np.abs(res["acc.p.e"] - p)) / P <= 1e-6
+    assert np.max(np.abs(res["acc.q"] - p / c)) / (P / c) <= 1e-6
+    assert np.max(np.abs(res["orifice.p.f"] - (P - p) / r)) / (P / r) <= 1e-6
+    assert res.units == {"acc.q": "m^3", "acc.p.e": "Pa", "orifice.p.f": "m^3/s"}

@@ -18,7 +18,11 @@ connections:
 MARKER = "/tmp/multipole_pwned_marker"
 
 CASES = {
-    "malformed_yaml": ("elements:\n  motor: {type: torque_source, value: 1\n", ["invalid YAML"], ":"),
+    "malformed_yaml": ("elements:\n  motor: {type: torque_source, value: 1\n", ["invalid YAML"], ":3"),
+    "duplicate_key": (GOOD.replace("  body:", "  motor: {type: ground}\n  body:"), ["'motor' appears twice"], ":4"),
+    "zero_inertia": (GOOD.replace("J: 0.1", "J: 0"), ["'J'", "must be positive", "element 'body'"], ":4"),
+    "negative_inertia": (GOOD.replace("J: 0.1", "J: -2*0.1"), ["must be positive", "element 'body'"], ":4"),
+    "unknown_solver": (GOOD + "simulate: {t_end: 1, solver: foo}\n", ["unknown solver 'foo'"], ":7"),
     "unknown_type": (GOOD.replace("type: inertia", "type: inertai"), ["unknown element type", "inertia"], ":4"),
     "unknown_parameter": (GOOD.replace("J: 0.1", "J: 0.1, K: 3"), ["no parameter 'K'", "element 'body'"], ":4"),
     "missing_parameter": (GOOD.replace("J: 0.1", "omega0: 1"), ["needs parameter 'J'", "element 'body'"], ":4"),

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -194,6 +195,9 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
+    except BrokenPipeError:              # output piped into `head` and the like: stop quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except (MultipoleError, OSError) as exc:
         if isinstance(exc, OSError):     # a file we were asked to read or write
             exc = MultipoleError("io", f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": "),

@@ -205,3 +205,58 @@ def test_circuit_without_ground_is_underdetermined():
 
 def pipeline_exit(text: str) -> int:
     return 0 if pipeline.check(scene(text)).ok else 1
+
+
+PARALLEL_TRANSFORMERS = """
+name: parallel_transformers
+parameters: {n: 2.0}
+elements:
+  supply: {type: voltage_source, value: "10"}
+  t1: {type: TF, ratio: n, domain_a: electrical, domain_b: electrical}
+  t2: {type: TF, ratio: n, domain_a: electrical, domain_b: electrical}
+  load: {type: resistor, R: 5}
+  gnd: {type: ground, domain: electrical}
+connections:
+  - [supply.p, t1.a, t2.a]
+  - [t1.b, t2.b, load.a]
+  - [load.b, supply.n, gnd.p]
+"""
+
+
+CANCELLING_RESISTANCES = """
+name: cancelling_resistances
+elements:
+  supply: {type: Se, value: "1", domain: electrical}
+  loop: {type: junction_b, ports: [s, r1, r2], signs: [1, -1, -1], domain: electrical}
+  r1: {type: R, r: 2.0, domain: electrical}
+  r2: {type: R, r: -2.0, domain: electrical}
+connections:
+  - [supply.p, loop.s]
+  - [loop.r1, r1.p]
+  - [loop.r2, r2.p]
+"""
+
+
+def test_parallel_electrical_transformers_are_a_static_overdetermination():
+    """Weber's dual of the rigid power split: two ideal transformers between the same two electrical
+    nodes impose the secondary voltage twice; nothing decides how the current splits."""
+    an = check(PARALLEL_TRANSFORMERS)
+    [d] = [d for d in an.diagnostics if d.severity == "error"]
+    assert d.code == "static_overdetermination"
+    assert "kinematic under-determination" in d.message
+    assert {"t1", "t2"} <= set(d.path) and d.path[0] == d.path[-1]
+    # the same circuit with one transformer is well-posed
+    one = PARALLEL_TRANSFORMERS.replace("  t2: {type: TF, ratio: n, domain_a: electrical, domain_b: electrical}\n", "")
+    one = one.replace("t1.a, t2.a]", "t1.a]").replace("t1.b, t2.b, load.a]", "t1.b, load.a]")
+    assert check(one).ok
+
+
+def test_cancelling_resistances_make_a_singular_loop():
+    """r1 + r2 = 0 in a zero-storage series loop: (r1 + r2)·i = U has no unique solution."""
+    from multipole import IllPosedError
+    with pytest.raises(IllPosedError) as exc:
+        pipeline.equations(scene(CANCELLING_RESISTANCES))
+    assert exc.value.code == "singular_loop" and "r1" in exc.value.fix and "r2" in exc.value.fix
+    fine = CANCELLING_RESISTANCES.replace("r: -2.0", "r: 3.0")
+    res = run(fine + "outputs: [r1.p.f]\nsimulate: {t_end: 0.1}\n")
+    assert np.allclose(res["r1.p.f"], 1.0 / (2.0 + 3.0), rtol=1e-12)

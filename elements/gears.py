@@ -129,15 +129,17 @@ class MissingCrossCoupling(Primitive):
     It contributes no equation: unlike an unconnected port (which the kernel terminates as a free
     end, effort 0 — Weber's special case of a resistance-free relative motion, Bild 13), nothing
     here determines the branch's effort or flow, so ``multipole check`` finds the network
-    under-determined — exactly Weber's "open arrows" of Bild 25 top.  ``needs`` says what belongs
-    there (kept on the primitive and in its ``doc``).
+    under-determined — exactly Weber's "open arrows" of Bild 25 top.  It is a kernel
+    *placeholder*: ``needs`` says what is missing and ``fix`` how to add it, and the analyser
+    reports both (code ``missing_cross_coupling``) instead of its generic under-determination.
     """
 
     kind = "missing"
 
-    def __init__(self, dom, needs: str):
+    def __init__(self, dom, needs: str, fix: str = ""):
         super().__init__({"p": dom}, {}, doc=f"missing cross-coupling: {needs}")
         self.needs = needs
+        self.fix = fix
 
     def relations(self, V):
         return []
@@ -273,7 +275,11 @@ def _normal_level(children, connections, params, quantities, signals, r1, r2, se
     children["sliding"] = junction_a(["t1", "t2", "r"], MECH, [1, -1, -1])
     connections += [["tangent1.a", "sliding.t1"], ["tangent2.a", "sliding.t2"], ["sliding.r", "friction.p"]]
     if not laws:                     # Weber's Bild 25 top: nothing closes the tangential branch
-        children["friction"] = MissingCrossCoupling(MECH, "tangential tooth friction (mu or d_t)")
+        children["friction"] = MissingCrossCoupling(
+            MECH, "the tangential branch of the normal/tangential split lacks a cross-coupling: no resistance R "
+                  "(tooth friction) turns the sliding velocity between the flanks into the tangential force "
+                  "(Weber, Bild 25 top)",
+            "give {element} a tooth-friction law: mu (with v_reg) or d_t")
     else:
         children["friction"] = R(law=sp.Add(*laws), dom=MECH)
         quantities["sliding_velocity"] = Quantity(lambda V: V.f("friction.p"), "m/s",

@@ -14,7 +14,11 @@ Works on the equations of a :class:`~multipole.network.FlatNetwork`:
    A part whose equations are redundant without any state is a structural error: two sources on
    one variable, or a rigid loop (kinematic over-determination with static under-determination);
    a loop whose kinematic constraints alone force standstill is a locked loop.
-4. What no equation determines is reported as under-determined.
+4. What no equation determines is reported as under-determined.  If an under-determined part
+   reaches a *placeholder* — a primitive an element library put where its structure needs a part
+   the user left out — the report uses the placeholder's own words instead of the generic ones
+   (see :func:`placeholder_needs`).  The kernel knows nothing about what is missing; the element
+   says it.
 
 The result is an :class:`Analysis`: the final equations, their assignment, the states that are
 integrated, the demoted ones and the diagnostics.
@@ -33,6 +37,30 @@ from .network import Equation, FlatNetwork, State, var
 from .primitives import T
 
 _ROLE_RANK = {"storage": 0, "law": 0, "source": 0}
+
+
+def placeholder_needs(prim) -> tuple[str, str] | None:
+    """``(needs, fix)`` if ``prim`` is a placeholder primitive, else None.
+
+    The protocol for element libraries: a :class:`~multipole.primitives.Primitive` subclass that
+    stands for a part of the element's structure which the chosen parameters leave out contributes
+    no equations and sets
+
+    * ``needs`` — what is missing there, as a phrase that completes "<element>: …", in the
+      element's own terms (e.g. "the … branch lacks a cross-coupling: …");
+    * ``fix`` (optional) — what the user should change; ``{element}`` is replaced by the name of
+      the top-level element the user wrote in the netlist, ``{owner}`` by the path of the network
+      that contains the placeholder.
+
+    When the analyser finds variables no equation determines and they reach a placeholder's port,
+    it reports the code ``missing_cross_coupling`` with these words instead of the generic
+    ``underdetermined`` report.
+    """
+    needs = getattr(prim, "needs", None)
+    if not isinstance(needs, str) or not needs.strip():
+        return None
+    fix = getattr(prim, "fix", "")
+    return needs.strip(), fix if isinstance(fix, str) else ""
 
 
 def der(sym: sp.Symbol) -> sp.Symbol:
@@ -282,23 +310,33 @@ class _Analyser:
             groups.append((eqs, vs))
         return groups
 
-    def under_vars(self):
-        unknown_set = set(self.unknowns)
+    def equations_of(self) -> dict:
+        """Unknown -> indices of the equations it appears in (after the last matching)."""
         rev: dict = {}
         for i, vs in enumerate(self.adj):
             for v in vs:
                 rev.setdefault(v, []).append(i)
+        return rev
+
+    def under_vars(self):
+        """Unknowns left unmatched, and all unknowns they leave undetermined with them."""
         start = [v for v in self.unknowns if v not in self.m_var]
+        return start, self.reach_of(start)
+
+    def reach_of(self, start) -> set:
+        """Unknowns left undetermined together with the unmatched unknowns ``start`` (alternating
+        paths: an equation using one of them cannot determine the unknown matched to it)."""
+        rev = self.equations_of()
         seen = set(start)
         queue = deque(start)
         while queue:
             v = queue.popleft()
             for i in rev.get(v, []):
                 w = self.m_eq.get(i)
-                if w is not None and w not in seen and w in unknown_set:
+                if w is not None and w not in seen:
                     seen.add(w)
                     queue.append(w)
-        return start, seen
+        return seen
 
     # -- numerics on a group ---------------------------------------------------------------------
     def sample_points(self, symbols):
@@ -369,7 +407,9 @@ class _Analyser:
                 "(structurally over-determined) and the analyser found no storage to resolve it",
                 "look for two rigid paths or two sources acting on the same variable", elements=owners))
         if not self.errors():
-            missing, _ = self.under_vars()
+            missing, reach = self.under_vars()
+            if missing:
+                missing = self.report_placeholders(missing, reach)
             if missing:
                 self.report_under(missing)
         integrated = [s for s in self.states if s not in self.demoted]
@@ -621,6 +661,75 @@ class _Analyser:
             "add a ground (reference potential) to the circuit" if electrical else
             "add a storage element, a source or a ground where these variables live",
             elements=sorted({self.flat.element_of(p) for p in ports}), ports=ports))
+
+    def nearest_sums(self, start, reach) -> list:
+        """The junctions (and nodes) nearest to the variables ``start`` whose sums use them, found by
+        walking through the equations of the under-determined part ``reach`` (transformers are
+        passed through, a junction or node ends the walk)."""
+        rev = self.equations_of()
+        seen_v, seen_e, found = set(start), set(), []
+        queue = deque(start)
+        while queue:
+            v = queue.popleft()
+            for i in rev.get(v, []):
+                if i in seen_e:
+                    continue
+                seen_e.add(i)
+                owner = self.equations[i].owner
+                prim = self.flat.primitives.get(owner)
+                if (prim is None and owner.startswith("node(")) or \
+                        (prim is not None and prim.kind.startswith("junction")):
+                    if owner not in found:
+                        found.append(owner)
+                    continue
+                for w in self.adj[i]:
+                    if w in reach and w not in seen_v:
+                        seen_v.add(w)
+                        queue.append(w)
+        return found
+
+    def report_placeholders(self, missing, reach) -> list:
+        """Report the placeholders the under-determined part reaches (see :func:`placeholder_needs`);
+        return the under-determined variables none of them explains."""
+        found = []
+        for path, prim in self.flat.primitives.items():
+            words = placeholder_needs(prim)
+            if words is None:
+                continue
+            port_vars = {}
+            for port in prim.ports:
+                for kind in ("e", "f"):
+                    sym = var(f"{path}.{port}.{kind}")
+                    port_vars[self.aliases.get(sym, (sym, 1))[0]] = sym
+            hit = [port_vars[v] for v in port_vars if v in reach]
+            if hit:
+                found.append((path, words, hit, set(port_vars)))
+        if not found:
+            return missing
+        explained = set()
+        for path, (needs, fix), hit, reps in found:
+            element = self.flat.element_of(path)
+            owner = path.rsplit(".", 1)[0] if "." in path else path
+            names, nouns = [], set()
+            for sym in hit:
+                dom = self.flat.port_domains[sym.name.rsplit(".", 1)[0]]
+                noun = dom.effort if sym.name.endswith(".e") else dom.flow
+                nouns.add(noun)
+                names.append(f"the {noun} {sym.name}")
+            sums = self.nearest_sums([self.aliases.get(sym, (sym, 1))[0] for sym in hit], reach)
+            where = (f"the {'/'.join(sorted(nouns))} sums at {' and '.join(sums)} are" if sums else
+                     "the junctions that need it are")
+            self.diagnostics.append(Diagnostic(
+                "missing_cross_coupling",
+                f"{element}: {needs}. Nothing determines {' and '.join(names)}, so {where} one input short "
+                f"(under-determined)",
+                fix.format(element=element, owner=owner) if fix else
+                f"complete {element} so that {path} is a cross-coupling (I, R or C)",
+                elements=[element], ports=sorted({s.name.rsplit(".", 1)[0] for s in hit})))
+            for v in missing:
+                if self.reach_of([v]) & reps:
+                    explained.add(v)
+        return [v for v in missing if v not in explained]
 
     def unconnected(self):
         for node in self.flat.nodes:

@@ -23,6 +23,10 @@ CATALOGUE: dict[str, tuple[str, str]] = {
         "error", "equations that impose more than they can, with no storage to resolve it"),
     "underdetermined": (
         "error", "variables no equation determines"),
+    "missing_cross_coupling": (
+        "error", "variables no equation determines because a branch ends where the element's "
+                 "structure needs a cross-coupling the parameters leave out; the element names it "
+                 "and says how to add it"),
     "derivative_causality": (
         "info", "storage elements coupled rigidly: one is put into derivative causality and "
                 "resolved into an effective inertia or compliance"),

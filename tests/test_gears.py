@@ -270,17 +270,58 @@ def test_normal_level_output_held_rings_at_the_base_radius_frequency():
 
 
 def test_normal_split_without_tangential_resistance_is_not_well_posed(capsys):
-    """Weber Bild 25 top: with no R in the tangential branch nothing determines the flank forces."""
+    """Weber Bild 25 top: with no R in the tangential branch nothing determines the tangential force,
+    so the flank force sums lack an input.  The check says so in Weber's terms and names the fix."""
     path = WEBER / "spur_normal_no_friction.yaml"
     assert main(["check", str(path)]) == 1
     report = capsys.readouterr().out
-    assert "underdetermined" in report and "mesh." in report
+    assert "error[missing_cross_coupling] mesh: the tangential branch" in report
+    assert "lacks a cross-coupling" in report and "Bild 25" in report
+    assert "fix: give mesh a tooth-friction law: mu (with v_reg) or d_t" in report
+    assert "add a storage element" not in report            # not the generic under-determination
     an = pipeline.check(load(path))
-    err = [d for d in an.errors if d.code == "underdetermined"]
-    assert err and err[0].elements == ["mesh"]
+    assert [d.code for d in an.errors] == ["missing_cross_coupling"]
+    err = an.errors[0]
+    assert err.elements == ["mesh"] and err.ports == ["mesh.friction.p"]
+    assert "mesh.flank1" in err.message and "mesh.flank2" in err.message   # the two force sums short of an input
     # the same split with a (zero) tangential resistance is well-posed: it is the missing R, not friction
-    ok = pipeline.check(load(path, {"mesh.mu": "0"}))
-    assert ok.ok, ok.report()
+    for law in ({"mesh.mu": "0"}, {"mesh.d_t": "0"}):
+        ok = pipeline.check(load(path, law))
+        assert ok.ok, ok.report()
+
+
+def test_placeholder_words_come_from_the_primitive_not_from_the_kernel():
+    """The kernel's placeholder protocol is generic: any primitive with ``needs``/``fix`` that an
+    under-determined part reaches is reported in its own words; other gaps keep the generic report."""
+    from multipole import Network, Primitive, R, Sf, analyse, flatten, junction_b
+
+    class Gap(Primitive):
+        kind = "gap"
+        needs = "the second branch lacks a cross-coupling"
+        fix = "give {element} a damper (owner {owner})"
+
+        def __init__(self):
+            super().__init__({"p": "translational"})
+
+        def relations(self, V):
+            return []
+
+    # a velocity source drives a rigid body (type-b junction) with a damper on one branch and the
+    # placeholder on the other: the force sum of the junction lacks one input
+    inner = Network("box", {"j": junction_b(["a", "b", "c"], "translational"), "gap": Gap(),
+                            "damper": R(r=2.0, dom="translational")},
+                    [["j.b", "gap.p"], ["j.c", "damper.p"]], {"a": "j.a"})
+    net = Network("scene", {"drive": Sf(1.0, "translational"), "box": inner}, [["drive.p", "box.a"]])
+    an = analyse(flatten(net))
+    assert [d.code for d in an.errors] == ["missing_cross_coupling"]
+    err = an.errors[0]
+    assert err.message.startswith("box: the second branch lacks a cross-coupling")
+    assert "box.gap.p.e" in err.message and "box.j" in err.message
+    assert err.fix == "give box a damper (owner box)" and err.ports == ["box.gap.p"]
+    # without the words the same structure gets the generic report
+    Gap.needs = ""
+    an = analyse(flatten(net))
+    assert [d.code for d in an.errors] == ["underdetermined"]
 
 
 # -- power split (Weber §5.6, Bild 28/29) --------------------------------------------------------

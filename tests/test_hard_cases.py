@@ -1,15 +1,20 @@
 """Hard cases for the integrators and the analyser (diagrams/hard/).
 
 Expected values come from theory (closed forms, stability charts, conservation laws, exact
-piecewise solutions) or from hand-written scipy models of the same physics; work counters are
-checked against bounds derived from the methods' stability limits.  No wall-clock assertions.
+piecewise solutions) or from hand-written scipy models of the same physics.  Work counters
+(``Result.stats``: steps, rejected, nfev, njev, nlu, segments) are checked against bounds derived
+from the methods' stability limits (:func:`multipole.bench.explicit_stability_bound`), from their
+order at the run's tolerance (:func:`taylor_steps`), from the structure of the problem (linear,
+piecewise, periodic) or against scipy's own work on hand-written equations.  No wall-clock
+assertions.
 """
 import importlib.util
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
+from scipy.integrate import DOP853, solve_ivp
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
@@ -32,6 +37,29 @@ def scene(text, overrides=None):
 
 def params(sc) -> dict:
     return {k: float(v) for k, v in sc.network.params.items()}
+
+
+def taylor_steps(omega, duration, rtol, q):
+    """Steps over ``duration`` [s] that an integrator would need at ``rtol`` if its local error were
+    the Taylor remainder ``(h*omega)**q / q!`` of a solution whose fastest frequency is ``omega``
+    [rad/s] (``q`` = the error estimator's order + 1: 8 for DOP853, 5 for RK45 and GL4), i.e.
+    ``h = (q! * rtol)**(1/q) / omega``.  The error constants of the real methods are smaller, so a
+    working step-size control stays below this budget; one that collapses (at a kink, near a
+    singular right-hand side) exceeds it."""
+    return duration * omega / (math.factorial(q) * rtol) ** (1.0 / q)
+
+
+def attempts(stats) -> int:
+    """Step attempts of an explicit Runge–Kutta run: accepted plus rejected."""
+    return stats["steps"] + stats["rejected"]
+
+
+def dop853_work(f, y0, t_end, rtol, atol) -> tuple[int, int]:
+    """(steps, attempts) of scipy's DOP853 (``solve_ivp``, no dense output) on hand-written
+    equations: per attempt 12 evaluations, plus 2 for the start (f0 and the initial-step guess)."""
+    sol = solve_ivp(f, (0.0, t_end), y0, method="DOP853", rtol=rtol, atol=atol)
+    assert sol.success and (sol.nfev - 2) % 12 == 0
+    return len(sol.t) - 1, (sol.nfev - 2) // 12
 
 
 # -- the scene files and the hand-written models -------------------------------------------------
@@ -137,6 +165,10 @@ def _monodromy(delta, eps, text_fn=S.mathieu_oscillator):
     for q0, v0 in ((1.0, 0.0), (0.0, 1.0)):
         sc = scene(text_fn(delta=delta, eps=eps, periods=1, q0=q0, v0=v0))
         res = pipeline.run(sc, solver="DOP853", rtol=1e-11, atol=1e-13, progress=False)
+        # work: the fastest tone is the modulation (1 rad/s) mixed with the oscillation (<= sqrt(delta+eps)),
+        # one period within the order-8 budget at rtol 1e-11 (measured 24-30 steps of <= 61-71); explicit
+        assert res.stats["steps"] <= taylor_steps(1 + np.sqrt(delta + eps), 2 * np.pi, 1e-11, 8)
+        assert res.stats["segments"] == 1 and res.stats["njev"] == res.stats["nlu"] == 0
         cols.append([res["spring.q"][-1], res["body.v"][-1]])
     return np.array(cols).T
 
@@ -170,10 +202,21 @@ def test_mathieu_floquet_multipliers_match_a_hand_written_model():
 
 def test_mathieu_amplitude_grows_only_inside_the_tongue():
     for delta, grows in ((0.25, True), (0.40, False)):
-        res = pipeline.run(scene(S.mathieu_oscillator(delta=delta, eps=EPS, periods=20)), progress=False)
+        sc = scene(S.mathieu_oscillator(delta=delta, eps=EPS, periods=20))
+        res = pipeline.run(sc, progress=False)
         q = np.abs(res["spring.q"])
         last = q[res.t >= res.t[-1] - 2 * np.pi].max()
         assert (last > 50) == grows and (last < 3) == (not grows)
+        t_end, rtol, atol = (sc.simulate[k] for k in ("t_end", "rtol", "atol"))
+        assert res.solver == "DOP853"
+        # work: 20 periods within the order-8 budget of the fastest tone 1 + sqrt(delta + eps)
+        # (measured 296 / 309 steps of <= 744 / 790), also while the amplitude grows 100-fold
+        assert res.stats["steps"] <= taylor_steps(1 + np.sqrt(delta + EPS), t_end, rtol, 8)
+        # and no more than scipy's DOP853 on the hand-written equation at the same tolerances (the same
+        # method on the same equations: equal up to 2 % for round-off; measured 296 + 65 rejected = scipy's)
+        steps, tries = dop853_work(lambda t, y: [y[1], -(delta + EPS * np.cos(t)) * y[0]], [1.0, 0.0], t_end,
+                                   rtol, atol)
+        assert res.stats["steps"] <= 1.02 * steps and attempts(res.stats) <= 1.02 * tries
 
 
 # -- 3. stick-slip -----------------------------------------------------------------------------------
@@ -218,9 +261,95 @@ def test_slack_rope_switches_are_events_at_the_exact_times_and_energy_is_conserv
     E = 0.5 * p["m"] * v**2 + p["m"] * p["g"] * q + 0.5 * p["k"] * np.minimum(q, 0) ** 2
     assert np.max(np.abs(E - E[0])) / abs(E[0]) <= 1e-7
     assert np.allclose(res["rope.p.e"], p["k"] * np.minimum(q, 0), rtol=1e-12, atol=1e-9)
+    # work: every segment is integrated (no empty restarts) and the driver's events (root on the dense
+    # output, restart there) cost no more than scipy's DOP853 on the hand-written rope with the same
+    # kink, restarted at the same roots (same method, tolerances, restarts; 5 % for where each restart
+    # lands; measured 240 + 185 rejected attempts against scipy's 234 + 209)
+    assert res.solver == "DOP853" and res.stats["steps"] >= res.stats["segments"]
+    t_end, rtol, atol = (sc.simulate[k] for k in ("t_end", "rtol", "atol"))
+    steps, tries = _rope_dop853_work(p, t_end, rtol, atol)
+    assert res.stats["steps"] <= 1.05 * steps and attempts(res.stats) <= 1.05 * tries
+    # the collapse-free budget (test below) is attainable: the hand model with each segment's branch frozen
+    # meets it (measured 111 steps, 0 rejected against 213 and 16)
+    steps, tries = _rope_dop853_work(p, t_end, rtol, atol, frozen=True)
+    assert steps <= _rope_budget(p, res.stats["segments"], rtol) and tries - steps <= res.stats["segments"]
+
+
+def _rope_budget(p, segments, rtol) -> float:
+    """Steps of a collapse-free run of the slack rope with ``segments`` restarts."""
+    # a restart's first step is scipy's initial guess (>= 1e-6 s) growing <= 10x per step: <= 7 steps to
+    # reach an arc's length (<= 0.3 s); a free flight is a parabola, exact for DOP853, so that is all it
+    # needs; every second segment is a taut arc of (2 pi + 2 psi)/omega s, adding its order-8 budget
+    taut = S.slack_rope_events(2, **p)
+    return 7 * segments + (segments // 2) * taylor_steps(np.sqrt(p["k"] / p["m"]), taut[1] - taut[0], rtol, 8)
+
+
+def _rope_dop853_work(p, t_end, rtol, atol, frozen=False) -> tuple[int, int]:
+    """(steps, attempts) of scipy's DOP853 on the hand-written rope, restarted at each root of ``q``
+    found on the dense output.  ``frozen``: each segment integrates its own smooth branch (free flight
+    or taut spring) instead of ``k*min(q, 0)``, so no step crosses the kink."""
+    k_m, g = p["k"] / p["m"], p["g"]
+    t, y, side = 0.0, np.array([p["h0"], 0.0]), 1.0
+    steps = nfev = dense = segments = 0
+    while t < t_end:
+        if not frozen:
+            def f(tt, yy):
+                return np.array([yy[1], -g - k_m * min(yy[0], 0.0)])
+        elif side > 0:
+            def f(tt, yy):
+                return np.array([yy[1], -g])
+        else:
+            def f(tt, yy):
+                return np.array([yy[1], -g - k_m * yy[0]])
+        ode = DOP853(f, t, y, t_end, rtol=rtol, atol=atol)
+        segments += 1
+        t = t_end
+        while ode.status == "running":
+            ode.step()
+            steps += 1
+            if ode.y[0] * side < 0:
+                sol = ode.dense_output()
+                dense += 1
+                t = brentq(lambda s: sol(s)[0], ode.t_old, ode.t, xtol=1e-14, rtol=4 * np.finfo(float).eps)
+                y, side = sol(t), -side
+                break
+        nfev += ode.nfev
+    # per segment 2 evaluations to start, 3 per dense output, 12 per attempt
+    return steps, (nfev - 2 * segments - 3 * dense) // 12
+
+
+@pytest.mark.xfail(strict=True, reason="step-size collapse before each switch: the right-hand side evaluates "
+                   "k*min(q, 0) at the trial states, so the step that crosses a switch sees the jump of the "
+                   "third derivative and is rejected down to ~2e-5 s before the sign change is seen; freezing "
+                   "the branch per segment would remove it (see the frozen hand model)")
+def test_slack_rope_events_cost_no_step_size_collapse():
+    sc = scene(S.slack_rope())
+    res = pipeline.run(sc, progress=False)
+    segments = res.stats["segments"]
+    # smooth arcs between switches need no rejections: at most one per restart (measured 185 rejected,
+    # about 12 per switch, in 240 steps against a budget of 213 for the 16 segments)
+    assert res.stats["rejected"] <= segments
+    assert res.stats["steps"] <= _rope_budget(params(sc), segments, sc.simulate["rtol"])
 
 
 # -- 5. and 9. slider-crank through its dead centres, state choice ----------------------------------------
+# Case 9 has no scene of its own: it asks for a mechanism where one candidate state's constraint map
+# becomes singular along the motion, and the slider-crank is exactly that (dx/dphi = 0 at every dead
+# centre makes the piston's momentum a singular choice); a second scene would repeat this one.
+
+def _crank_rhs(p):
+    """Hand-written Lagrange equation of the slider-crank in the scene's states (flywheel.p, crank.q):
+    ``J_eff(phi) phi'' + m x' x'' phi'^2 + F0 x' = 0`` with ``J_eff = J + m x'^2``, ``x' = dx/dphi``."""
+    r, l, J, m, F0 = (p[k] for k in ("r", "l", "J", "m", "F0"))
+
+    def f(t, y):
+        w, s, c = y[0] / J, math.sin(y[1]), math.cos(y[1])
+        R = math.sqrt(l * l - r * r * s * s)
+        dx = -r * s - r * r * s * c / R
+        d2x = -r * c - r * r * (c * c - s * s) / R - r**4 * s * s * c * c / R**3
+        return [-J * (F0 * dx + m * dx * d2x * w * w) / (J + m * dx * dx), w]
+    return f
+
 
 def test_slider_crank_passes_the_dead_centres_and_closes_the_energy_balance():
     sc = scene(S.slider_crank())
@@ -237,6 +366,16 @@ def test_slider_crank_passes_the_dead_centres_and_closes_the_energy_balance():
     assert np.allclose(vp, ratio * w, rtol=1e-9, atol=1e-9)
     w_max = np.sqrt(2 * (kinetic[0] + 2 * r * p["F0"]) / p["J"])   # no blow-up: bounded by the energy
     assert np.all(np.isfinite(w)) and w.max() <= w_max and w.min() > 0
+    # work: the motion is periodic in phi with harmonics 1 and 2 (x = r cos phi + sqrt(l^2 - r^2 sin^2 phi)),
+    # fastest tone 2*w_max: within the order-8 budget over t_end (measured 1305 steps of <= 4700) ...
+    t_end, rtol, atol = (sc.simulate[k] for k in ("t_end", "rtol", "atol"))
+    assert res.solver == "DOP853" and res.stats["segments"] == 1
+    assert res.stats["steps"] <= taylor_steps(2 * w_max, t_end, rtol, 8)
+    # ... and no more than scipy's DOP853 on the hand-written equation in the same states at the same
+    # tolerances: the generated right-hand side (with its long expanded expression) adds no work; 2 % for
+    # round-off (measured 1305 + 484 rejected against scipy's 1305 + 485; the 27 % rejected are scipy's controller)
+    steps, tries = dop853_work(_crank_rhs(p), [p["J"] * p["w0"], 0.0], t_end, rtol, atol)
+    assert res.stats["steps"] <= 1.02 * steps and attempts(res.stats) <= 1.02 * tries
 
 
 def test_state_choice_integrates_the_crank_and_prefer_state_overrides_it():
@@ -261,6 +400,26 @@ def test_state_choice_integrates_the_crank_and_prefer_state_overrides_it():
         x[model.state_names.index("piston.p")] = 1e-3
         near = model.rhs(0.0, x)
     assert singular or np.max(np.abs(near)) > 1e6
+    # work: from half a stroke (phi0 = pi/2, where dx/dphi = -r) for 0.3 s through ~6 dead centres at
+    # rtol 1e-9.  The analyser's choice stays within the order-8 budget of the smooth motion (fastest tone
+    # 2*w_max, as in case 5); with the piston's momentum as state the step size collapses at every dead
+    # centre and the run exceeds it (measured 38 and 189 steps against a budget of 143)
+    p = params(sc)
+    phi0, t_run, rtol = np.pi / 2, 0.3, 1e-9
+    good = pipeline.model(scene(S.slider_crank()))
+    x_good = good.x0.copy()                                            # flywheel.p = J*w0
+    x_good[good.state_names.index("crank.q")] = phi0
+    x_ill = model.x0.copy()
+    x_ill[model.state_names.index("crank.q")] = phi0
+    x_ill[model.state_names.index("piston.p")] = -p["m"] * p["r"] * p["w0"]
+    runs = [simulate(m, t_run, t_run / 100, "DOP853", rtol, rtol * 1e-3, progress=False, x0=x0)
+            for m, x0 in ((good, x_good), (model, x_ill))]
+    for res in runs:
+        assert (res["crank.q"][-1] - phi0) / np.pi >= 5
+    assert np.allclose(runs[1]["flywheel.omega"], runs[0]["flywheel.omega"], rtol=1e-5)   # the same motion
+    w_max = np.sqrt(2 * (0.5 * (p["J"] + p["m"] * p["r"] ** 2) * p["w0"] ** 2 + 2 * p["r"] * p["F0"]) / p["J"])
+    budget = taylor_steps(2 * w_max, t_run, rtol, 8)
+    assert runs[0].stats["steps"] <= budget < runs[1].stats["steps"]
 
 
 # -- 6. long horizon: energy drift and the Gauss–Legendre integrator ----------------------------------------
@@ -271,19 +430,45 @@ def _energy(res, p):
 
 
 def test_gl4_keeps_the_energy_bounded_where_runge_kutta_drifts():
-    sc = scene(S.two_mass_oscillator(periods=100))
-    p = params(sc)
-    drift = {}
-    for solver, rtol in (("GL4", 1e-4), ("RK45", 1e-6)):
-        res = pipeline.run(sc, solver=solver, rtol=rtol, atol=rtol * 1e-3, progress=False)
-        dE = np.abs(_energy(res, p) / _energy(res, p)[0] - 1)
-        n = len(dE) // 10
-        drift[solver] = (dE[:n].max(), dE[-n:].max(), dE[-1])
-    first, last, end = drift["GL4"]
+    """Case 6 over 100 slow periods, not the issue's 10^4: that run (20-60 s per solver) is
+    benchmarks/long_horizon.py (docs/bench/long_horizon.csv).  What carries over to 10^4 periods is
+    checked here: the GL4 energy error does not grow from the first to the last tenth, RK45's grows with
+    time, and the work per period is constant (10 periods against 100), so the long run costs 100x this
+    one (the CSV: RK45 620003 steps, GL4 156856 steps and still 20 LUs)."""
+    p = dict(S._TWO_MASS)
+    fast = np.max(np.abs(np.linalg.eigvals(S._two_mass_matrix(p))))    # 8.94 rad/s, the fast mode
+    drift, stats = {}, {}
+    for periods in (10, 100):
+        sc = scene(S.two_mass_oscillator(periods=periods))
+        t_end = sc.simulate["t_end"]
+        for solver, rtol in (("GL4", 1e-4), ("RK45", 1e-6)):
+            res = pipeline.run(sc, solver=solver, rtol=rtol, atol=rtol * 1e-3, progress=False)
+            stats[solver, periods] = res.stats
+            # work: both methods' local error is O(h^5) (GL4 by step doubling), the fastest tone is the fast
+            # mode: within the order-5 budget (measured at 100 periods GL4 1576 of <= 3041, RK45 6203 of <= 7657)
+            assert res.stats["steps"] <= taylor_steps(fast, t_end, rtol, 5)
+            dE = np.abs(_energy(res, p) / _energy(res, p)[0] - 1)
+            n = len(dE) // 10
+            drift[solver, periods] = (dE[:n].max(), dE[-n:].max(), dE[-1])
+    first, last, end = drift["GL4", 100]
     assert end <= 1e-12                              # at the step points: conserved to round-off
     assert last <= 2 * first + 1e-12                  # in between (dense output): bounded, no growth
-    first, last, end = drift["RK45"]
+    first, last, end = drift["RK45", 100]
     assert last >= 5 * first and end >= 1e-6          # Runge–Kutta: grows about linearly in time
+    for solver in ("GL4", "RK45"):
+        # constant work per period: 10x the periods cost at most 10x the steps (the short run carries the
+        # start-up as well; measured GL4 1576 <= 10 * 165, RK45 6203 <= 10 * 623)
+        assert stats[solver, 100]["steps"] <= 10 * stats[solver, 10]["steps"]
+    gl4 = stats["GL4", 100]
+    # a linear problem: the Jacobian is constant, evaluated once and never refreshed (Newton never slow)
+    assert gl4["njev"] == 1
+    # per step 3 Gauss solves (h, h/2, h/2) x 2 Newton iterations (exact Jacobian of a linear problem: the
+    # first converges, the second confirms) x 2 stages + f at the middle and the end = 14 evaluations;
+    # a rejected trial costs 12 more: at most 1 in 30 steps (measured nfev = 14 * 1576 + 2)
+    assert gl4["nfev"] <= 14 * gl4["steps"] + 12 * (gl4["steps"] // 30) + 2
+    # the LU of (I - h A x J) is kept while h is: after the start-up h stays, so nlu does not grow with the
+    # horizon (measured 20 at 10 and at 100 periods)
+    assert gl4["nlu"] <= stats["GL4", 10]["nlu"]
 
 
 def test_gauss_legendre_tableau_is_the_collocation_method():

@@ -3,7 +3,7 @@
 Chains of N = 10, 100, 1000 mass-spring pairs (elements/scenes.py: mass_spring_chain).  For each N:
 check time (flatten + analyse), compile time (flatten + analyse + assemble + codegen, split by
 stage), time per right-hand-side call (generated and hand-written numpy), time per Jacobian call,
-and one short simulation.  Log-log slopes between consecutive sizes.
+and one short simulation (its cost per accepted step [µs]).  Log-log slopes between consecutive sizes.
 
     python benchmarks/chain_scaling.py [--sizes 10 100 1000] [--out docs/bench]
 
@@ -31,7 +31,7 @@ from multipole.simulate import simulate
 ROOT = Path(__file__).resolve().parents[1]
 FIELDS = ["N", "states", "load_s", "flatten_s", "analyse_s", "check_s", "assemble_s", "codegen_s", "compile_s",
           "rhs_generated_us", "rhs_hand_us", "rhs_ratio", "jac_generated_us", "sim_solver", "sim_s", "sim_nfev",
-          "per_call_in_run_us", "sim_max_dev"]
+          "sim_steps", "per_call_in_run_us", "per_step_us", "sim_max_dev"]
 
 
 def measure(n: int) -> dict:
@@ -56,13 +56,14 @@ def measure(n: int) -> dict:
     rhs_hand = _time_calls(hand.rhs, [(t, x[idx]) for t, x in pts])
     jac_gen = _time_calls(model.jac, pts[:1], min_time=0.02)
     dev = max(float(np.max(np.abs(model.rhs(t, x)[idx] - hand.rhs(t, x[idx])))) for t, x in pts)
-    res = simulate(model, 0.05, 0.001, "auto", 1e-6, 1e-9, progress=False)
+    res = simulate(model, 1.0, 0.01, "auto", 1e-6, 1e-9, progress=False)
     per_call = res.stats["wall_time"] / max(res.stats["nfev"] + res.stats.get("njev", 0), 1)
     return {"N": n, "states": 2 * n, "load_s": t1 - t0, "flatten_s": t2 - t1, "analyse_s": t3 - t2,
             "check_s": t3 - t1, "assemble_s": t4 - t3, "codegen_s": t5 - t4, "compile_s": t5 - t1,
             "rhs_generated_us": 1e6 * rhs_gen, "rhs_hand_us": 1e6 * rhs_hand, "rhs_ratio": rhs_gen / rhs_hand,
             "jac_generated_us": 1e6 * jac_gen, "sim_solver": res.solver, "sim_s": res.stats["wall_time"],
-            "sim_nfev": res.stats["nfev"], "per_call_in_run_us": 1e6 * per_call, "sim_max_dev": dev}
+            "sim_nfev": res.stats["nfev"], "sim_steps": res.stats["steps"], "per_call_in_run_us": 1e6 * per_call,
+            "per_step_us": 1e6 * res.stats["wall_time"] / max(res.stats["steps"], 1), "sim_max_dev": dev}
 
 
 def slopes(rows, key) -> list:
@@ -97,8 +98,9 @@ def plot(rows, path) -> None:
     ax.loglog(N, [r["rhs_hand_us"] for r in rows], "s-", label="hand-written numpy rhs (per call)")
     ax.loglog(N, [r["jac_generated_us"] for r in rows], "^-", label="generated Jacobian (per call)")
     ax.loglog(N, [r["per_call_in_run_us"] for r in rows], "k*-", label="whole run / (nfev + njev)")
+    ax.loglog(N, [r["per_step_us"] for r in rows], "kD--", label="whole run / accepted steps")
     ax.set_xlabel("N (mass-spring pairs)")
-    ax.set_ylabel("time per call [µs]")
+    ax.set_ylabel("time per call or step [µs]")
     ax.set_title("per evaluation", fontsize=10)
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
@@ -134,5 +136,5 @@ if __name__ == "__main__":
     ap.add_argument("--out", default=str(ROOT / "docs" / "bench"))
     args = ap.parse_args()
     rows = run(args.sizes, args.out)
-    for key in ("check_s", "compile_s", "rhs_generated_us", "rhs_hand_us"):
+    for key in ("check_s", "compile_s", "rhs_generated_us", "rhs_hand_us", "per_step_us"):
         print(f"slope of {key}: " + ", ".join(f"{s:.2f}" for s in slopes(rows, key)))

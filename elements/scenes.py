@@ -16,6 +16,7 @@ its momentum ``p`` [N·s]; a damper's relative flow is ``f = f_a - f_b`` [m/s].
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -62,6 +63,11 @@ def _num(x) -> str:
 
 def _params(values: dict) -> str:
     return "{" + ", ".join(f"{k}: {_num(v)}" for k, v in values.items()) + "}"
+
+
+def _values(params: dict, defaults: dict) -> dict:
+    """The scene's parameter values (``params``, e.g. after ``--set``) over the builder's ``defaults``."""
+    return {k: float(params.get(k, v)) for k, v in defaults.items()}
 
 
 def linear_response(A, y0, c, forcing_step=None, tau=None, t=None):
@@ -244,7 +250,7 @@ bench: {'true' if bench else 'false'}
 
 
 def _two_mass_hand(params: dict) -> HandModel:
-    p = {k: float(params.get(k, v)) for k, v in _TWO_MASS.items()}
+    p = _values(params, _TWO_MASS)
     outs = {"m1.v": lambda t, X: X[1] / p["m1"], "m2.v": lambda t, X: X[3] / p["m2"]}
     return _linear_hand("two_mass_oscillator", ["k1.q", "m1.p", "k2.q", "m2.p"], _two_mass_matrix(p),
                         _two_mass_x0(p), outputs=outs)
@@ -305,7 +311,7 @@ bench: true
 
 
 def _stiff_hand(params: dict) -> HandModel:
-    p = {k: float(params.get(k, v)) for k, v in _STIFF.items()}
+    p = _values(params, _STIFF)
     T0, tau = p["T0"], p["tau"]
 
     def forcing(t):
@@ -353,6 +359,24 @@ def mathieu_boundaries(eps: float) -> tuple[float, float]:
     return 0.25 - eps / 2 - eps**2 / 8 + eps**3 / 32, 0.25 + eps / 2 - eps**2 / 8 - eps**3 / 32
 
 
+_MATHIEU = {"delta": 0.2, "eps": 0.2, "q0": 1.0, "v0": 0.0}
+
+
+def _mathieu_hand(params: dict) -> HandModel:
+    """States (body.p [N·s], spring.q [m]), unit mass: ``p' = -(δ + ε cos t) q``, ``q' = p``."""
+    p = _values(params, _MATHIEU)
+    delta, eps = p["delta"], p["eps"]
+
+    def rhs(t, x):
+        mom, q = x
+        return np.array([-(delta + eps * math.cos(t)) * q, mom])
+
+    def jac(t, x):
+        return np.array([[0.0, -(delta + eps * math.cos(t))], [1.0, 0.0]])
+    outs = {"spring.q": lambda t, X: X[1], "body.v": lambda t, X: X[0]}
+    return HandModel("mathieu", ["body.p", "spring.q"], np.array([p["v0"], p["q0"]]), rhs, jac, outs)
+
+
 # -------------------------------------------------------------------------------------------------
 # stick-slip
 
@@ -388,6 +412,33 @@ simulate: {{t_end: {_num(t_end)}, dt_out: 0.002, solver: auto, rtol: 1.0e-8, ato
 reference: {{kind: tight, output: spring.deflection}}
 bench: true
 """
+
+
+def _stick_slip_hand(params: dict) -> HandModel:
+    """States (body.p [N·s], spring.q [m]); slip speed ``f = v_belt - v`` [m/s]:
+    ``p' = F(f) - k q``, ``q' = v``, with the regularised Coulomb–Stribeck law ``F`` below."""
+    p = _values(params, _STICK)
+    m, k, v_belt, F_s, F_k, v_reg, v_s = (p[n] for n in ("m", "k", "v_belt", "F_s", "F_k", "v_reg", "v_s"))
+
+    def friction(f):
+        """Friction force [N] at the slip speed ``f`` [m/s]: static level F_s, kinetic F_k."""
+        return (F_k + (F_s - F_k) * math.exp(-(f / v_s) ** 2)) * math.tanh(f / v_reg)
+
+    def friction_slope(f):
+        """dF/df [N·s/m]."""
+        th = math.tanh(f / v_reg)
+        bump = (F_s - F_k) * math.exp(-(f / v_s) ** 2)
+        return -2 * f / v_s**2 * bump * th + (F_k + bump) * (1 - th * th) / v_reg
+
+    def rhs(t, x):
+        mom, q = x
+        v = mom / m
+        return np.array([friction(v_belt - v) - k * q, v])
+
+    def jac(t, x):
+        return np.array([[-friction_slope(v_belt - x[0] / m) / m, -k], [1 / m, 0.0]])
+    outs = {"body.v": lambda t, X: X[0] / m, "spring.deflection": lambda t, X: X[1]}
+    return HandModel("stick_slip", ["body.p", "spring.q"], np.array([m * v_belt, 0.0]), rhs, jac, outs)
 
 
 def stick_slip_exact(t, m=1.0, k=100.0, v_belt=0.1, F_s=10.0, F_k=6.0, **_ignored):
@@ -458,6 +509,27 @@ bench: true
 """
 
 
+def _slack_rope_hand(params: dict) -> HandModel:
+    """States (rope.q [m], load.p [N·s]): ``q' = p/m``, ``p' = -m g - T(q)`` with the tension-only
+    rope ``T(q) = k min(q, 0)`` [N] written as a plain function (no events: the step-size control
+    finds the kinks)."""
+    p = _values(params, _ROPE)
+    m, k, g = p["m"], p["k"], p["g"]
+
+    def rope(q):
+        """Rope force [N] at the height ``q`` [m] above the taut point: pulls only when ``q < 0``."""
+        return k * min(q, 0.0)
+
+    def rhs(t, x):
+        q, mom = x
+        return np.array([mom / m, -m * g - rope(q)])
+
+    def jac(t, x):
+        return np.array([[0.0, 1 / m], [-k if x[0] < 0 else 0.0, 0.0]])
+    outs = {"rope.q": lambda t, X: X[0], "load.v": lambda t, X: X[1] / m}
+    return HandModel("slack_rope", ["rope.q", "load.p"], np.array([p["h0"], 0.0]), rhs, jac, outs)
+
+
 def slack_rope_events(n: int, m=10.0, k=1.0e4, g=9.81, h0=0.1, **_ignored) -> np.ndarray:
     """Exact times [s] of the first ``n`` taut/slack switches of :func:`slack_rope`.
 
@@ -524,6 +596,54 @@ bench: true
 """
 
 
+def _crank_kinematics(phi, r, l):
+    """Derivatives ``x'``, ``x''``, ``x‴`` [m/rad, m/rad², m/rad³] of the piston position of
+    :func:`slider_crank_position` with respect to the crank angle ``φ`` [rad].
+
+    With ``s = sqrt(l² - r² sin² φ)`` and ``a = sin φ cos φ`` (so ``s' = -r² a/s``, ``a' = cos 2φ``):
+    ``x' = -r sin φ - r² a/s``, ``x'' = -r cos φ - r² cos 2φ/s - r⁴ a²/s³``,
+    ``x‴ = r sin φ + 4 r² a/s - 3 r⁴ a cos 2φ/s³ - 3 r⁶ a³/s⁵``.
+    """
+    sn, cs = math.sin(phi), math.cos(phi)
+    a, c2 = sn * cs, cs * cs - sn * sn
+    s = math.sqrt(l * l - (r * sn) ** 2)
+    d1 = -r * sn - r * r * a / s
+    d2 = -r * cs - r * r * c2 / s - r**4 * a * a / s**3
+    d3 = r * sn + 4 * r * r * a / s - 3 * r**4 * a * c2 / s**3 - 3 * r**6 * a**3 / s**5
+    return d1, d2, d3
+
+
+def _slider_crank_hand(params: dict) -> HandModel:
+    """States (flywheel.p = J ω [N·m·s], crank.q = φ [rad]); the piston (mass m, speed ``x'(φ) ω``)
+    is rigidly tied to the crank.  Lagrange with ``T = (J + m x'²) ω²/2`` and the potential ``F0 x``
+    of the constant gas force: ``(J + m x'²) ω' = -x' (F0 + m x'' ω²)``, so
+    ``p' = -J x' (F0 + m x'' ω²)/(J + m x'²)``, ``φ' = ω = p/J``."""
+    p = _values(params, _CRANK)
+    r, l, J, m, F0 = p["r"], p["l"], p["J"], p["m"], p["F0"]
+
+    def rhs(t, x):
+        mom, phi = x
+        w = mom / J
+        d1, d2, _ = _crank_kinematics(phi, r, l)
+        return np.array([-J * d1 * (F0 + m * d2 * w * w) / (J + m * d1 * d1), w])
+
+    def jac(t, x):
+        mom, phi = x
+        w = mom / J
+        d1, d2, d3 = _crank_kinematics(phi, r, l)
+        den = J + m * d1 * d1
+        num = -J * d1 * (F0 + m * d2 * w * w)
+        dnum_dphi = -J * (d2 * (F0 + m * d2 * w * w) + d1 * m * d3 * w * w)
+        dnum_dp = -2 * m * d1 * d2 * w
+        return np.array([[dnum_dp / den, (dnum_dphi * den - num * 2 * m * d1 * d2) / den**2], [1 / J, 0.0]])
+
+    def piston_speed(t, X):
+        d1 = np.array([_crank_kinematics(phi, r, l)[0] for phi in np.atleast_1d(X[1])])
+        return d1 * X[0] / J
+    outs = {"flywheel.omega": lambda t, X: X[0] / J, "crank.q": lambda t, X: X[1], "piston.v": piston_speed}
+    return HandModel("slider_crank", ["flywheel.p", "crank.q"], np.array([J * p["w0"], 0.0]), rhs, jac, outs)
+
+
 # -------------------------------------------------------------------------------------------------
 # differentiated step, nonlinear algebraic loop
 
@@ -584,6 +704,91 @@ bench: true
 """
 
 
+def _loop_hand(params: dict) -> HandModel:
+    """State body.p [N·s].  With ``Δ = v_belt - v`` and the slip ``s = u - v`` of the second damper
+    [m/s], the series force ``F`` [N] solves ``h(s) = d1 (Δ - s) + k1 (Δ - s)³ - a2 sinh(s/b2) = 0``;
+    ``h`` falls strictly in ``s`` and changes sign between 0 and Δ, so Newton's method safeguarded
+    by bisection on that bracket finds the one root.  ``p' = F = a2 sinh(s/b2)``; by the implicit
+    function theorem ``dF/dΔ = G1 G2/(G1 + G2)`` (the series conductance) with
+    ``G1 = d1 + 3 k1 (Δ - s)²``, ``G2 = a2 cosh(s/b2)/b2`` [N·s/m]."""
+    p = _values(params, _LOOP)
+    m, V, w, d1, k1, a2, b2 = (p[n] for n in ("m", "V", "w", "d1", "k1", "a2", "b2"))
+
+    def slip(delta):
+        """Root ``s`` [m/s] of ``h`` for the slip speed ``delta`` [m/s] across both dampers."""
+        lo, hi = min(0.0, delta), max(0.0, delta)
+        s = 0.5 * (lo + hi)
+        for _ in range(200):
+            f1 = delta - s
+            h = d1 * f1 + k1 * f1**3 - a2 * math.sinh(s / b2)
+            if h > 0:
+                lo = s
+            else:
+                hi = s
+            new = s + h / (d1 + 3 * k1 * f1 * f1 + a2 * math.cosh(s / b2) / b2)
+            if not lo <= new <= hi:                     # Newton left the bracket: bisect
+                new = 0.5 * (lo + hi)
+            if abs(new - s) <= 1e-15 * max(abs(delta), 1e-300):
+                return new
+            s = new
+        return s
+
+    def rhs(t, x):
+        s = slip(V * math.sin(w * t) - x[0] / m)
+        return np.array([a2 * math.sinh(s / b2)])
+
+    def jac(t, x):
+        delta = V * math.sin(w * t) - x[0] / m
+        s = slip(delta)
+        G1, G2 = d1 + 3 * k1 * (delta - s) ** 2, a2 * math.cosh(s / b2) / b2
+        return np.array([[-G1 * G2 / (G1 + G2) / m]])
+    outs = {"body.v": lambda t, X: X[0] / m}
+    return HandModel("nonlinear_loop", ["body.p"], np.zeros(1), rhs, jac, outs)
+
+
+# -------------------------------------------------------------------------------------------------
+# the two bench scenes of diagrams/ (not built here): drive train and series RLC circuit
+
+#: diagrams/drive_train.yaml: gear ratio i, shaft stiffness c_shaft [N·m/rad] (scene parameters) and
+#: the element values written in the file: inertias J1, J2 [kg·m²], shaft and bearing damping
+#: d_s, d_b [N·m·s/rad], motor torque T0 (1 - exp(-t/tau)) [N·m], tau [s].
+_DRIVE = {"i": 3.0, "c_shaft": 2000.0, "J1": 2.0e-3, "J2": 0.5, "d_s": 0.5, "d_b": 0.8, "T0": 10.0, "tau": 0.05}
+
+
+def _drive_train_hand(params: dict) -> HandModel:
+    """States (rotor.p, shaft.q, load.p); the gear gives the shaft the input speed ``ω1/i`` and the
+    rotor the torque ``τ/i`` of the shaft ``τ = c q + d_s (ω1/i - ω2)`` [N·m]:
+    ``p1' = T(t) - τ/i``, ``q' = ω1/i - ω2``, ``p2' = τ - d_b ω2``."""
+    p = _values(params, _DRIVE)
+    i, c, J1, J2, ds, db = (p[n] for n in ("i", "c_shaft", "J1", "J2", "d_s", "d_b"))
+    A = np.array([[-ds / (i * i * J1), -c / i, ds / (i * J2)],
+                  [1 / (i * J1), 0.0, -1 / J2],
+                  [ds / (i * J1), c, -(ds + db) / J2]])
+    T0, tau = p["T0"], p["tau"]
+
+    def forcing(t):
+        return np.array([T0 * (1 - math.exp(-t / tau)), 0.0, 0.0])
+    outs = {"rotor.omega": lambda t, X: X[0] / J1, "load.omega": lambda t, X: X[2] / J2,
+            "shaft.force": lambda t, X: c * X[1]}
+    return _linear_hand("drive_train", ["rotor.p", "shaft.q", "load.p"], A, np.zeros(3), forcing, outs)
+
+
+#: diagrams/rlc_series.yaml: supply V [V] (scene parameter), R [Ω], L [H], C [F] from the file.
+_RLC = {"V": 12.0, "R": 10.0, "L": 0.1, "C": 1.0e-4}
+
+
+def _rlc_hand(params: dict) -> HandModel:
+    """States (L1.p = L i [V·s], C1.q [C]): ``p' = V step(t) - R p/L - q/C``, ``q' = p/L``."""
+    p = _values(params, _RLC)
+    V, R, L, C = p["V"], p["R"], p["L"], p["C"]
+    A = np.array([[-R / L, -1 / C], [1 / L, 0.0]])
+
+    def forcing(t):
+        return np.array([V if t >= 0 else 0.0, 0.0])
+    outs = {"C1.v": lambda t, X: X[1] / C, "L1.i": lambda t, X: X[0] / L}
+    return _linear_hand("rlc_series", ["L1.p", "C1.q"], A, np.zeros(2), forcing, outs)
+
+
 # -------------------------------------------------------------------------------------------------
 
 #: file name in diagrams/hard/ -> YAML text
@@ -608,6 +813,13 @@ HAND_MODELS: dict = {
     "two_mass_oscillator": _two_mass_hand,
     "two_mass_long": _two_mass_hand,
     "stiff_drive_train": _stiff_hand,
+    "drive_train": _drive_train_hand,
+    "rlc_series": _rlc_hand,
+    "mathieu": _mathieu_hand,
+    "nonlinear_loop": _loop_hand,
+    "slack_rope": _slack_rope_hand,
+    "slider_crank": _slider_crank_hand,
+    "stick_slip": _stick_slip_hand,
 }
 
 

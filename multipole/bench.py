@@ -4,11 +4,21 @@ For every benchmark scene the bench runs each solver over a ladder of tolerances
 error against a reference, the wall time (median of repeats) and the work counters.  It writes
 
 * ``bench.csv`` — one row per (scene, backend, solver, rtol): errors, wall time, nfev, njev, nlu,
-  steps, rejected steps, Newton iterations, energy drift, status and message;
+  steps, rejected steps, Newton iterations, energy drift, status and message.  Besides the
+  ``numpy`` backend and every compiled one, the "backend" ``scipy-hand`` is the hand-written numpy
+  model of the scene with ``scipy.integrate.solve_ivp`` (RK45, DOP853, Radau, BDF, LSODA; analytic
+  Jacobian for the implicit ones), against the same reference;
 * ``side_by_side.csv`` — generated model against a hand-written numpy right-hand side of the same
-  equations (per call and whole run, same solver), and naive ``solve_ivp`` defaults against ``auto``;
+  equations (per call and whole run, same solver), and naive ``solve_ivp`` defaults against ``auto``
+  (with a lower bound of the speed-up where the naive run would exceed its evaluation budget);
+* ``equal_error.csv`` — per scene, compiled backend and error level: the fastest hand-written
+  ``solve_ivp`` run and the fastest compiled-backend run reaching that error, and their ratio;
 * ``bench_<scene>.png`` — work-precision figure (error against wall time and against nfev);
 * ``summary.md`` — which solver to pick for which scene and why.
+
+Hand-written models are found through the entry point group ``multipole.hand_models``: each entry
+is a callable ``f(scene) -> HandModel | None``; the first answer that is not ``None`` is used.  The
+kernel knows no element library by name.
 
 Reference of a scene: the ``reference`` mapping of its netlist::
 
@@ -26,12 +36,16 @@ and stated next to every result.
 
 Errors are relative to the output's scale: ``err_final = |y(T) - y_ref(T)| / max|y_ref|`` and
 ``err_max = max_t |y(t) - y_ref(t)| / max|y_ref|`` over the output grid.  Wall time is the
-integration time reported by the simulator (compilation excluded, the output grid included).
+integration time reported by the simulator (compilation excluded, the output grid included); for a
+compiled backend, the whole call of the backend on equations derived once (building the work
+arrays, integrating, sampling the outputs, the Result; compilation is cached after the first call);
+for ``scipy-hand``, the whole ``solve_ivp`` call with ``t_eval`` on the same output grid.
 """
 from __future__ import annotations
 
 import csv
 import math
+from importlib.metadata import entry_points
 import statistics
 import sys
 import time
@@ -53,6 +67,12 @@ SWEEP_SOLVERS = ["RK45", "DOP853", "Radau", "BDF", "LSODA", "GL4", "auto"]
 TOLERANCES = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
 QUICK_TOLERANCES = [1e-3, 1e-6, 1e-9]
 EXPLICIT_RK = {"RK45", "RK23", "DOP853"}
+HAND = "scipy-hand"                                   # backend label of the hand-written solve_ivp runs
+HAND_SOLVERS = ["RK45", "DOP853", "Radau", "BDF", "LSODA"]
+EQUAL_ERROR_LEVELS = (1e-3, 1e-6, 1e-9)
+SPEEDUP_TARGET = 20.0                                 # compiled backend against hand-written scipy
+SLOW_RUN_S = 20.0                                     # a run this long [s] skips the tighter tolerances
+HAND_MAX_NFEV = 1_000_000                             # a hand-written run stops (fails) beyond this many calls
 CSV_FIELDS = ["scene", "backend", "solver", "chosen", "rtol", "atol", "status", "err_final", "err_max",
               "ref_error", "energy_drift", "wall_s", "repeats", "nfev", "njev", "nlu", "steps", "rejected",
               "newton_iterations", "events", "message"]
@@ -229,8 +249,11 @@ def _measure(run: Run, ref: Reference, res, walls) -> None:
     dev = np.abs(res[ref.output] - ref.at(res.t)) / ref.scale
     run.err_final, run.err_max = float(dev[-1]), float(np.max(dev))
     run.ref_error = ref.error
-    if ref.energy is not None:
-        E = ref.energy(res.t, res.outputs)
+    try:
+        E = ref.energy(res.t, res.outputs) if ref.energy is not None else None
+    except KeyError:                 # a hand-written model without every output the formula reads
+        E = None
+    if E is not None:
         run.energy_drift = float(np.max(np.abs(E - E[0])) / max(abs(E[0]), 1e-300))
     run.wall_s = statistics.median(walls)
     run.repeats = len(walls)
@@ -253,14 +276,17 @@ def _fresh(model) -> None:
         guess[:] = [[0.0] * len(g) for g in guess]      # the generated initial values
 
 
-def _one(fn, repeats: int, model=None):
-    """Run ``fn`` (returns a Result) up to ``repeats`` times; wall times from the simulator."""
+def _one(fn, repeats: int, model=None, whole_call: bool = False):
+    """Run ``fn`` (returns a Result) up to ``repeats`` times; wall times [s] from the simulator, or
+    of the whole call of ``fn`` with ``whole_call``."""
     walls, res = [], None
     for k in range(repeats):
         _fresh(model)
         start = time.perf_counter()
         res = fn()
-        wall = res.stats.get("wall_time", time.perf_counter() - start)
+        wall = time.perf_counter() - start
+        if not whole_call:
+            wall = res.stats.get("wall_time", wall)
         walls.append(wall)
         if wall > 1.0:              # long runs: one measurement is enough
             break
@@ -293,15 +319,64 @@ def _time_calls(fn, args, min_time=0.05) -> float:
     return statistics.median(samples)
 
 
-def side_by_side(scene: Scene, model, ref: Reference, chosen: str, rtol: float, atol: float,
-                 naive_budget: int) -> dict | None:
-    """Generated against hand-written right-hand side; naive ``solve_ivp`` against ``auto``."""
+def hand_model(scene: Scene):
+    """The hand-written model of ``scene``: the first answer that is not ``None`` of the callables
+    registered in the entry point group ``multipole.hand_models`` (``None`` if none answers)."""
+    for ep in entry_points(group="multipole.hand_models"):
+        try:
+            factory = ep.load()
+        except ImportError:
+            continue
+        hand = factory(scene)
+        if hand is not None:
+            return hand
+    return None
+
+
+class _HandResult:
+    """A ``solve_ivp`` solution of a hand-written model, shaped like the parts of a Result that
+    :func:`_measure` reads: ``t``, ``outputs`` (every output the hand model defines), ``stats``."""
+
+    def __init__(self, hand, sol, solver: str):
+        self.t, self.solver, self.events = sol.t, solver, []
+        self.outputs = {name: np.asarray(g(sol.t, sol.y), dtype=float) for name, g in hand.outputs.items()}
+        self.stats = {"nfev": sol.nfev, "njev": sol.njev, "nlu": sol.nlu}
+
+    def __getitem__(self, name):
+        return self.outputs[name]
+
+
+def solve_hand(hand, t_end: float, grid, solver: str, rtol: float, atol: float,
+               max_nfev: int = HAND_MAX_NFEV) -> _HandResult:
+    """``solve_ivp`` on the hand-written model over ``[0, t_end]`` [s], sampled on ``grid``; the
+    analytic Jacobian is passed to the implicit methods.  A failed integration, or one that needs
+    more than ``max_nfev`` right-hand side calls, raises RuntimeError."""
     from scipy.integrate import solve_ivp
-    try:
-        from elements.scenes import hand_model
-    except ImportError:
-        return None
-    hand = hand_model(scene)
+    kw = {"jac": hand.jac} if solver in IMPLICIT and hand.jac is not None else {}
+    calls = [0]
+    rhs = hand.rhs
+
+    def counted(t, x):
+        calls[0] += 1
+        if calls[0] > max_nfev:
+            raise RuntimeError(f"solve_ivp {solver}: stopped after {max_nfev:.3g} right-hand side calls")
+        return rhs(t, x)
+    sol = solve_ivp(counted, (0.0, t_end), hand.x0, method=solver, t_eval=grid, rtol=rtol, atol=atol, **kw)
+    if not sol.success:
+        raise RuntimeError(f"solve_ivp {solver}: {sol.message}")
+    return _HandResult(hand, sol, solver)
+
+
+def side_by_side(scene: Scene, model, ref: Reference, chosen: str, rtol: float, atol: float,
+                 naive_budget: int, hand=None) -> dict | None:
+    """Generated against hand-written right-hand side; naive ``solve_ivp`` against ``auto``.
+
+    When the naive run would need more than ``naive_budget`` evaluations by the stability bound of
+    RK45, it is not run; ``naive_lower_s`` = (that many evaluations) × (time of one hand-written
+    right-hand side call) is then a lower bound of its wall time [s] (RK45's own per-step work left out).
+    """
+    from scipy.integrate import solve_ivp
+    hand = hand if hand is not None else hand_model(scene)
     if hand is None:
         return None
     idx = hand.permutation(model.state_names)
@@ -342,7 +417,8 @@ def side_by_side(scene: Scene, model, ref: Reference, chosen: str, rtol: float, 
     out["naive_min_nfev"] = bound["nfev"]
     if bound["nfev"] > naive_budget:
         out.update({"naive_status": f"skipped: the stability bound needs >= {bound['nfev']:.3g} evaluations",
-                    "naive_s": math.nan, "naive_err": math.nan, "naive_nfev": math.nan})
+                    "naive_s": math.nan, "naive_err": math.nan, "naive_nfev": math.nan,
+                    "naive_lower_s": bound["nfev"] * t_hand})
         return out
     start = time.perf_counter()
     sol = solve_ivp(hand.rhs, (0.0, ref.t_end), hand.x0, t_eval=res.t)
@@ -367,6 +443,9 @@ class SceneReport:
     stiffness: str = ""
     n_states: int = 0
     skipped: str = ""
+    grid: np.ndarray | None = None     # output grid of the runs [s]
+    equal: list = field(default_factory=list)    # rows of equal_error(), every compiled backend
+    auto_method: object = None         # rtol -> the method ``auto`` runs
 
 
 class _Bar:
@@ -400,8 +479,52 @@ def default_scenes(root: Path | None = None) -> list[Path]:
     return out
 
 
+def _sweep(rep: SceneReport, backend: str, solvers, tolerances, ratio: float, budget, lam, bar, attempt) -> None:
+    """Every solver of ``solvers`` over ``tolerances`` for one backend, appended to ``rep.runs``.
+
+    ``attempt(solver, rtol, atol)`` returns ``(result, wall times)``.  An explicit method whose
+    stability bound needs more than ``budget`` evaluations is skipped with that bound as the message
+    (for ``auto``: the method it would choose); a run longer than :data:`SLOW_RUN_S` skips the
+    tighter tolerances of its solver.
+    """
+    for solver in solvers:
+        slow = False
+        for rtol in tolerances:
+            run = Run(rep.name, backend, solver, rtol, rtol * ratio)
+            rep.runs.append(run)
+            bar.tick(f"{rep.name} {backend} {solver} {rtol:g}")
+            if slow:
+                run.status, run.message = "skipped", "a looser tolerance already exceeded the time budget"
+                continue
+            method = rep.auto_method(rtol) if solver == "auto" else solver
+            if method in EXPLICIT_RK:
+                bound = explicit_stability_bound(lam, method, rep.reference.t_end)
+                if bound["nfev"] > budget:
+                    run.status = "skipped"
+                    run.message = ((f"auto would run {method}: " if solver == "auto" else "")
+                                   + f"stability bound: h <= {bound['h_max']:.3g} s, >= {bound['nfev']:.3g} "
+                                   f"evaluations (budget {budget:.3g})")
+                    continue
+            try:
+                res, walls = attempt(solver, rtol, run.atol)
+                _measure(run, rep.reference, res, walls)
+                if rep.grid is None:
+                    rep.grid = np.asarray(res.t)
+                if solver != "auto" and res.solver != solver:
+                    run.message = f"run as {res.solver} by the {backend} backend"
+                slow = run.wall_s > SLOW_RUN_S
+            except MultipoleError as exc:
+                unsupported = exc.code == "unknown_solver" and backend != "numpy"
+                run.status = "unsupported" if unsupported else "failed"
+                run.message = str(exc).splitlines()[0][:200]
+            except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
+                run.status, run.message = "failed", str(exc).splitlines()[0][:200]
+
+
 def bench_scene(scene: Scene, solvers, tolerances, repeats, backends, budget, bar, naive_budget) -> SceneReport:
-    """Reference, solver × tolerance sweep for every backend, and the hand-written comparison of one scene."""
+    """Reference, solver × tolerance sweep for every backend and for the hand-written model, the
+    equal-error comparison of every compiled backend with the hand-written model, and the
+    side-by-side comparison of one scene."""
     rep = SceneReport(scene.name, scene.path, None)
     analysis = pipeline.check(scene)
     if not analysis.ok:
@@ -414,71 +537,106 @@ def bench_scene(scene: Scene, solvers, tolerances, repeats, backends, budget, ba
     ref = build_reference(scene, model)
     rep.reference = ref
     rep.stiffness = choose_solver(model, ref.t_end, 1e-6)[1].replace("|lambda|max*t_end", "λmax·t_end")
+
+    def auto_method(rtol):
+        return choose_solver(model, ref.t_end, rtol)[0]
+    rep.auto_method = auto_method
     try:
         lam = np.linalg.eigvals(model.jac(0.0, model.x0)) if len(model.x0) else []
     except (ArithmeticError, ValueError, np.linalg.LinAlgError):
         lam = []
     ratio = scene.simulate.get("atol", 1e-9) / scene.simulate.get("rtol", 1e-6)
-    for backend in backends:
-        for solver in solvers:
-            slow = False
-            for rtol in tolerances:
-                run = Run(scene.name, backend, solver, rtol, rtol * ratio)
-                bar.tick(f"{scene.name} {backend} {solver} {rtol:g}")
-                if slow:
-                    run.status, run.message = "skipped", "a looser tolerance already exceeded the time budget"
-                    rep.runs.append(run)
-                    continue
-                method = choose_solver(model, ref.t_end, rtol)[0] if solver == "auto" else solver
-                if method in EXPLICIT_RK:
-                    bound = explicit_stability_bound(lam, method, ref.t_end)
-                    if bound["nfev"] > budget:
-                        run.status = "skipped"
-                        run.message = ((f"auto would run {method}: " if solver == "auto" else "")
-                                       + f"stability bound: h <= {bound['h_max']:.3g} s, >= {bound['nfev']:.3g} "
-                                       f"evaluations (budget {budget:.3g})")
-                        rep.runs.append(run)
-                        continue
-                try:
-                    if backend == "numpy":
-                        def fn():
-                            return simulate(model, ref.t_end, ref.dt_out, solver, rtol, run.atol, progress=False)
-                    else:
-                        def fn():
-                            return pipeline.run(scene, t_end=ref.t_end, dt_out=ref.dt_out, solver=solver, rtol=rtol,
-                                                atol=run.atol, progress=False, backend=backend)
-                    res, walls = _one(fn, repeats, model if backend == "numpy" else None)
-                    _measure(run, ref, res, walls)
-                    if solver != "auto" and res.solver != solver:
-                        run.message = f"run as {res.solver} by the {backend} backend"
-                    if run.wall_s > 20.0:
-                        slow = True
-                except MultipoleError as exc:
-                    unsupported = exc.code == "unknown_solver" and backend != "numpy"
-                    run.status = "unsupported" if unsupported else "failed"
-                    run.message = str(exc).splitlines()[0][:200]
-                except (ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
-                    run.status, run.message = "failed", str(exc).splitlines()[0][:200]
-                rep.runs.append(run)
+
+    def on_numpy(solver, rtol, atol):
+        return _one(lambda: simulate(model, ref.t_end, ref.dt_out, solver, rtol, atol, progress=False), repeats, model)
+    _sweep(rep, "numpy", solvers, tolerances, ratio, budget, lam, bar, on_numpy)
+    compiled = [b for b in backends if b != "numpy"]
+    if compiled:
+        from .backends import get_backend
+        eq = pipeline.equations(scene)
+        outs = list(model.output_names)
+    for backend in compiled:
+        run_backend = get_backend(backend)
+        for solver in solvers:        # untimed: compile the model, load every method's loop
+            try:
+                run_backend(eq, outs, ref.t_end * 1e-3, None, solver, 1e-3, 1e-3 * ratio, math.inf, False)
+            except (MultipoleError, ArithmeticError, ValueError, RuntimeError):
+                pass                  # the sweep reports it
+
+        def on_backend(solver, rtol, atol, run_backend=run_backend):
+            return _one(lambda: run_backend(eq, outs, ref.t_end, ref.dt_out, solver, rtol, atol, math.inf, False),
+                        repeats, whole_call=True)
+        _sweep(rep, backend, solvers, tolerances, ratio, budget, lam, bar, on_backend)
+    hand = hand_model(scene)
+    if hand is not None:
+        grid = ref.grid if ref.grid is not None else rep.grid
+
+        def on_hand(solver, rtol, atol):
+            return _one(lambda: solve_hand(hand, ref.t_end, grid, solver, rtol, atol), repeats, whole_call=True)
+        _sweep(rep, HAND, HAND_SOLVERS, tolerances, ratio, budget, lam, bar, on_hand)
+        for backend in compiled:
+            rep.equal += equal_error(rep, backend)
     auto = [r for r in rep.runs if r.solver == "auto" and r.backend == "numpy" and r.status == "ok"]
     chosen = auto[len(auto) // 2].chosen if auto else "Radau"
     rtol = scene.simulate.get("rtol", 1e-6)
-    rep.side = side_by_side(scene, model, ref, chosen, rtol, rtol * ratio, naive_budget)
+    rep.side = side_by_side(scene, model, ref, chosen, rtol, rtol * ratio, naive_budget, hand)
     if rep.side is not None:
         rep.side.update(_naive_vs_auto(rep))
     return rep
 
 
+def run_label(r: Run) -> str:
+    """The requested solver, with the method that ran when that differs (``auto→Radau``)."""
+    return r.solver if not r.chosen or r.chosen == r.solver else f"{r.solver}→{r.chosen}"
+
+
+def equal_error(rep: SceneReport, backend: str, levels=EQUAL_ERROR_LEVELS) -> list[dict]:
+    """Compiled ``backend`` against the hand-written model with ``solve_ivp`` at equal error.
+
+    For each error level: the fastest successful hand-written run (any of :data:`HAND_SOLVERS`, any
+    tolerance) with ``err_max <= level`` and the fastest successful ``backend`` run (any requested
+    solver) with ``err_max <= level``; ``ratio`` = hand-written wall time / backend wall time and the
+    verdict against :data:`SPEEDUP_TARGET`.  A level within 3× the reference's own error is not
+    measurable and says so.
+    """
+    rows = []
+    for level in levels:
+        hand, comp = fastest(rep, level, HAND), fastest(rep, level, backend)
+        row = {"scene": rep.name, "backend": backend, "level": level, "ratio": math.nan}
+        for key, r in (("hand", hand), ("backend", comp)):
+            row.update({f"{key}_solver": run_label(r) if r else "", f"{key}_rtol": r.rtol if r else math.nan, f"{key}_s": r.wall_s if r else math.nan,
+                        f"{key}_err": r.err_max if r else math.nan, f"{key}_nfev": r.nfev if r else math.nan})
+        if level <= 3 * rep.reference.error:
+            row["verdict"] = f"not measurable (reference error {rep.reference.error:.1g})"
+        elif comp is None:
+            row["verdict"] = f"not met: no {backend} run reached it"
+        elif hand is None:
+            row["verdict"] = "no hand-written run reached it"
+        else:
+            row["ratio"] = hand.wall_s / comp.wall_s
+            row["verdict"] = "met" if row["ratio"] >= SPEEDUP_TARGET else "not met"
+        rows.append(row)
+    return rows
+
+
 def _naive_vs_auto(rep: SceneReport) -> dict:
-    """Fastest ``auto`` run at least as accurate as the naive run, and the wall-time ratio."""
+    """Fastest ``auto`` run (numpy backend) at least as accurate as the naive run, and the wall-time ratio.
+
+    A naive run skipped for its evaluation budget has no error to match: the lower bound of its wall
+    time (``naive_lower_s``) is set against the most accurate ``auto`` run of the sweep, which
+    takes at least as long as the fastest ``auto`` run reaching any error down to its own; so
+    ``naive_speedup_min`` bounds the speed-up at equal error from below (unless the naive run would
+    be more accurate than every ``auto`` run).
+    """
     side = rep.side
     err = side.get("naive_err", math.nan)
     ok = [r for r in rep.runs if r.solver == "auto" and r.backend == "numpy" and r.status == "ok"]
     if not ok:
         return {}
-    if not math.isfinite(err):       # naive skipped: compare with auto's default-tolerance run
-        best = min(ok, key=lambda r: abs(math.log10(r.rtol) + 3))
-        return {"auto_equal_err_s": best.wall_s, "auto_equal_err": best.err_max, "auto_equal_rtol": best.rtol}
+    if not math.isfinite(err):
+        best = min(ok, key=lambda r: r.err_max)
+        return {"auto_equal_err_s": best.wall_s, "auto_equal_err": best.err_max, "auto_equal_rtol": best.rtol,
+                "naive_speedup_min": side.get("naive_lower_s", math.nan) / best.wall_s}
     good = [r for r in ok if r.err_max <= err]
     if not good:
         return {"auto_equal_err_s": math.nan}
@@ -505,7 +663,8 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     naive_budget = 2e5 if quick else 2e7
     backends = ["numpy"] + [b for b in available() if b != "numpy"]
     scenes = [load(p) for p in paths]
-    bar = _Bar(len(scenes) * len(solvers) * len(tolerances) * len(backends), sys.stderr.isatty() and not quiet)
+    per_scene = len(tolerances) * (len(solvers) * len(backends) + len(HAND_SOLVERS))
+    bar = _Bar(len(scenes) * per_scene, sys.stderr.isatty() and not quiet)
     reports = []
     for sc in scenes:
         reports.append(bench_scene(sc, solvers, tolerances, repeats, backends, budget, bar, naive_budget))
@@ -514,6 +673,7 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     out.mkdir(parents=True, exist_ok=True)
     write_csv(reports, out / "bench.csv")
     write_side_csv(reports, out / "side_by_side.csv")
+    _write_rows([row for rep in reports for row in rep.equal], EQUAL_FIELDS, out / "equal_error.csv")
     figs = Path(figures_dir) if figures_dir else out
     figs.mkdir(parents=True, exist_ok=True)
     for rep in reports:
@@ -523,29 +683,30 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     return reports
 
 
-def write_csv(reports, path) -> None:
+def _write_rows(rows, fields, path) -> None:
+    """Dicts as CSV rows (floats to 6 significant digits; keys outside ``fields`` left out)."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, CSV_FIELDS)
+        w = csv.DictWriter(fh, fields)
         w.writeheader()
-        for rep in reports:
-            for r in rep.runs:
-                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.row().items()})
+        for row in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items() if k in fields})
+
+
+def write_csv(reports, path) -> None:
+    _write_rows([r.row() for rep in reports for r in rep.runs], CSV_FIELDS, path)
 
 
 SIDE_FIELDS = ["scene", "n_states", "solver", "rtol", "rhs_generated_us", "rhs_hand_us", "rhs_ratio", "jac_ratio",
                "rhs_mismatch", "run_generated_s", "run_hand_s", "run_ratio", "nfev_generated", "nfev_hand",
                "err_generated", "err_hand", "naive_status", "naive_s", "naive_err", "naive_nfev", "naive_min_nfev",
-               "auto_equal_err_s", "auto_equal_err", "auto_equal_rtol", "naive_speedup"]
+               "auto_equal_err_s", "auto_equal_err", "auto_equal_rtol", "naive_speedup", "naive_lower_s",
+               "naive_speedup_min"]
+EQUAL_FIELDS = ["scene", "backend", "level", "hand_solver", "hand_rtol", "hand_s", "hand_err", "hand_nfev",
+                "backend_solver", "backend_rtol", "backend_s", "backend_err", "backend_nfev", "ratio", "verdict"]
 
 
 def write_side_csv(reports, path) -> None:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, SIDE_FIELDS)
-        w.writeheader()
-        for rep in reports:
-            if rep.side:
-                w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in rep.side.items()
-                            if k in SIDE_FIELDS})
+    _write_rows([rep.side for rep in reports if rep.side], SIDE_FIELDS, path)
 
 
 _STYLE = {"RK45": ("tab:blue", "o"), "DOP853": ("tab:orange", "s"), "Radau": ("tab:green", "^"),
@@ -553,41 +714,60 @@ _STYLE = {"RK45": ("tab:blue", "o"), "DOP853": ("tab:orange", "s"), "Radau": ("t
           "auto": ("black", "*"), "RK23": ("tab:pink", "x")}
 
 
+#: line style of each kind of run: colour is the method, the line says who ran it
+_LINE = {"numpy": ("-", "numpy backend"), HAND: (":", "hand-written + solve_ivp")}
+
+
+def _backend_line(backend: str) -> tuple[str, str]:
+    return _LINE.get(backend, ("--", f"{backend} backend"))
+
+
 def plot_work_precision(rep: SceneReport, path) -> None:
-    """Error against wall time and against nfev, log-log, one curve per solver (and backend)."""
+    """Three log-log panels, one curve per solver in each: (1) error against wall time on the numpy
+    backend; (2) error against wall time of every compiled backend (dashed) and of the hand-written
+    model with ``solve_ivp`` (dotted) — the equal-error comparison; (3) error against nfev, numpy
+    backend.  Colour: the method; line style: who ran it (said in each legend)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    fig, axes = plt.subplots(1, 3, figsize=(16.5, 7.0), sharey=True)
+    axes[1].sharex(axes[0])            # the same wall-time scale for numpy, compiled and hand-written runs
     floor = max(rep.reference.error, 1e-16)
-    for (solver, backend) in dict.fromkeys((r.solver, r.backend) for r in rep.runs):
-        runs = [r for r in rep.runs if r.solver == solver and r.backend == backend and r.status == "ok"
-                and (r.chosen == solver or solver == "auto")]          # a backend's stand-ins are not curves
-        if not runs:
-            continue
-        color, marker = _STYLE.get(solver, ("gray", "."))
-        label = solver if backend == "numpy" else f"{solver} [{backend}]"
-        ls = "-" if backend == "numpy" else "--"
-        err = [max(r.err_max, floor * 0.5) for r in runs]
-        axes[0].loglog([r.wall_s for r in runs], err, ls, color=color, marker=marker, label=label, ms=5)
-        axes[1].loglog([r.nfev for r in runs], err, ls, color=color, marker=marker, label=label, ms=5)
-    for ax, xl in zip(axes, ("wall time [s] (median of repeats)", "right-hand side evaluations (nfev)")):
-        ax.set_xlabel(xl)
-        ax.set_ylabel(f"max relative error of {rep.reference.output}")
+    panels = [(axes[0], "wall_s", {"numpy"}, "numpy backend (generated model + scipy)"),
+              (axes[1], "wall_s", {b for b in {r.backend for r in rep.runs} if b != "numpy"},
+               "compiled backend (dashed) vs hand-written solve_ivp (dotted)"),
+              (axes[2], "nfev", {"numpy"}, "numpy backend: work")]
+    for ax, key, backends, title in panels:
+        for (solver, backend) in dict.fromkeys((r.solver, r.backend) for r in rep.runs):
+            runs = [r for r in rep.runs if r.solver == solver and r.backend == backend and r.status == "ok"
+                    and (r.chosen == solver or solver == "auto")]          # a backend's stand-ins are not curves
+            if backend not in backends or not runs:
+                continue
+            color, marker = _STYLE.get(solver, ("gray", "."))
+            ls, who = _backend_line(backend)
+            label = solver if len(backends) == 1 else f"{solver}, {who}"
+            err = [max(r.err_max, floor * 0.5) for r in runs]
+            ax.loglog([getattr(r, key) for r in runs], err, ls, color=color, marker=marker, label=label, ms=5)
+        ax.set_xlabel("wall time [s]" if key == "wall_s" else "right-hand side evaluations (nfev)")
+        ax.set_title(title, fontsize=9)
         ax.grid(True, which="both", alpha=0.3)
         if rep.reference.error > 0:
-            ax.axhline(rep.reference.error, color="0.5", ls=":", lw=1)
-            ax.text(ax.get_xlim()[0], rep.reference.error, " reference error", va="bottom", fontsize=7, color="0.4")
+            ax.axhline(rep.reference.error, color="0.5", ls="-.", lw=1)
+            ax.text(0.01, rep.reference.error, "reference error", va="bottom", fontsize=7, color="0.4",
+                    transform=ax.get_yaxis_transform())
+        if ax.get_legend_handles_labels()[0]:            # below the panel, so that no curve is hidden
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, title_fontsize=7,
+                      title="colour: solver" + ("" if len(backends) == 1 else "; line: dashed compiled, dotted hand-written"))
+    axes[0].set_ylabel(f"max relative error of {rep.reference.output}")
     skipped = sorted({r.solver for r in rep.runs if r.status == "skipped"})
-    failed = sorted({r.solver for r in rep.runs if r.status == "failed"})
+    failed = sorted({f"{r.solver} [{r.backend}]" for r in rep.runs if r.status == "failed"})
     note = (f"skipped (stability/time budget): {', '.join(skipped)}" if skipped else "") + \
            (f"   failures: {', '.join(failed)}" if failed else "")
-    axes[1].legend(fontsize=8, loc="best")
     fig.suptitle(f"{rep.name}: work-precision ({rep.reference.note.split(';')[0]}; {rep.n_states} states)",
                  fontsize=10)
     if note:
         fig.text(0.5, 0.01, note, ha="center", fontsize=8, color="0.3")
-    fig.tight_layout(rect=(0, 0.03, 1, 0.95))
+    fig.tight_layout(rect=(0, 0.03, 1, 0.96))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -599,9 +779,9 @@ def _fmt(x, spec=".2g"):
     return "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else format(x, spec)
 
 
-def fastest(rep: SceneReport, target: float):
-    """The fastest successful numpy run with ``err_max <= target`` (above the reference's own error)."""
-    ok = [r for r in rep.runs if r.status == "ok" and r.backend == "numpy" and r.err_max <= target]
+def fastest(rep: SceneReport, target: float, backend: str = "numpy"):
+    """The fastest successful run of ``backend`` with ``err_max <= target`` (``None`` if none)."""
+    ok = [r for r in rep.runs if r.status == "ok" and r.backend == backend and r.err_max <= target]
     return min(ok, key=lambda r: r.wall_s) if ok else None
 
 
@@ -663,12 +843,33 @@ def recommendation(rep: SceneReport) -> str:
     return f"Pick **{pick}**. " + "; ".join(parts) + ". Why: " + "; ".join(why) + "."
 
 
+def equal_error_table(rows) -> list:
+    """Markdown lines of :func:`equal_error` rows (nothing for no rows)."""
+    if not rows:
+        return []
+    lines = [f"Compiled backend against the hand-written model with `solve_ivp` at equal error (target ≥ "
+             f"{SPEEDUP_TARGET:g}× less wall time):", "",
+             "| backend | error ≤ | hand-written: solver, rtol, wall [ms], error | backend: solver, rtol, wall [ms], "
+             "error | ratio | verdict |", "|---|---|---|---|---|---|"]
+    for row in rows:
+        cells = []
+        for key in ("hand", "backend"):
+            cells.append(f"{row[key + '_solver']}, {row[key + '_rtol']:g}, {row[key + '_s'] * 1e3:.3g}, "
+                         f"{row[key + '_err']:.2g}" if row[key + "_solver"] else "—")
+        lines.append(f"| {row['backend']} | {row['level']:g} | {cells[0]} | {cells[1]} | {_fmt(row['ratio'], '.3g')} | "
+                     f"{row['verdict']} |")
+    return lines + [""]
+
+
 def summary(reports, quick: bool) -> str:
     lines = ["# multipole bench — speed against error", "",
              "Errors are relative to the compared output's largest magnitude: `err_max` is the largest deviation "
              "over the output grid, `err_final` the one at the end.  Wall times are the simulator's integration "
-             "time (compilation excluded), median of repeats.  `rejected` is reported where the integrator "
-             "exposes it.", ""]
+             "time (compilation excluded) for the numpy backend, the whole backend call for a compiled backend "
+             "and the whole `solve_ivp` call for the hand-written model (`scipy-hand`), median of repeats.  "
+             "`rejected` is reported where the integrator exposes it; `solve_ivp` with `t_eval` does not expose "
+             "steps (0 in its rows).  A compiled backend runs DOP853 and RK23 as RK45, BDF and LSODA as Radau "
+             "(marked `→`).", ""]
     if quick:
         lines += ["*Quick run: fewer tolerances, single repeats.*", ""]
     for rep in reports:
@@ -695,6 +896,7 @@ def summary(reports, quick: bool) -> str:
                          f"{_fmt(r.energy_drift)} | {r.wall_s * 1e3:.3g} | {r.nfev} | {r.njev} | {r.nlu} | {r.steps} | "
                          f"{r.rejected if r.rejected != '' else 'n/a'} |")
         lines.append("")
+        lines += equal_error_table(rep.equal)
         if rep.side:
             s = rep.side
             lines += ["Generated model against a hand-written numpy right-hand side of the same equations:", "",
@@ -710,7 +912,12 @@ def summary(reports, quick: bool) -> str:
                       + (f"; `auto` at equal or better error: {s['auto_equal_err_s'] * 1e3:.3g} ms "
                          f"(rtol {s['auto_equal_rtol']:g}, error {s['auto_equal_err']:.2g}), "
                          f"**{s['naive_speedup']:.3g}× faster**" if math.isfinite(s.get("naive_speedup", math.nan))
-                         else ""), ""]
+                         else "")
+                      + (f"; lower bound of its wall time: {s['naive_lower_s']:.3g} s (stability bound × time of one "
+                         f"hand-written call); the most accurate `auto` run (error {s['auto_equal_err']:.2g}, rtol "
+                         f"{s['auto_equal_rtol']:g}) took {s['auto_equal_err_s'] * 1e3:.3g} ms: **≥ "
+                         f"{s['naive_speedup_min']:.3g}× faster** at equal error"
+                         if math.isfinite(s.get("naive_speedup_min", math.nan)) else ""), ""]
     return "\n".join(lines) + "\n"
 
 
@@ -720,5 +927,5 @@ def cmd_bench(args) -> int:
     ok = sum(r.status == "ok" for rep in reports for r in rep.runs)
     failed = sum(r.status == "failed" for rep in reports for r in rep.runs)
     print(f"bench: {len(reports)} scene(s), {ok} run(s) ok, {failed} failed; wrote {args.output}/bench.csv, "
-          f"side_by_side.csv, summary.md and {sum(r.reference is not None for r in reports)} figure(s)")
+          f"side_by_side.csv, equal_error.csv, summary.md and {sum(r.reference is not None for r in reports)} figure(s)")
     return 0

@@ -94,8 +94,41 @@ def test_bench_quick_smoke_writes_csv_figure_and_summary(tmp_path, capsys):
         assert float(r["err_max"]) >= float(r["err_final"]) and int(r["nfev"]) > 0 and float(r["wall_s"]) > 0
     tight = [float(r["err_max"]) for r in ok if r["solver"] == "DOP853"]
     assert tight[-1] < tight[0]                               # tighter tolerance, smaller error
+    hand_rows = [r for r in rows if r["backend"] == "scipy-hand"]
+    assert {r["solver"] for r in hand_rows} == {"RK45", "DOP853", "Radau", "BDF", "LSODA"}
+    assert all(r["status"] == "ok" for r in hand_rows)
+    # same method, same tolerances, same equations: the hand-written run lands on the generated run's error
+    for solver in ("RK45", "DOP853"):
+        gen = [float(r["err_max"]) for r in numpy_rows if r["solver"] == solver]
+        own = [float(r["err_max"]) for r in hand_rows if r["solver"] == solver]
+        assert np.allclose(own, gen, rtol=1e-6)
+    equal = list(csv.DictReader(open(out / "equal_error.csv", encoding="utf-8")))
+    compiled = {r["backend"] for r in rows} - {"numpy", "scipy-hand"}
+    assert {r["backend"] for r in equal} == compiled and len(equal) == 3 * len(compiled)
+    for r in equal:
+        hand = [h for h in hand_rows if h["status"] == "ok" and float(h["err_max"]) <= float(r["level"])]
+        if hand:                     # the fastest hand-written run at that error, and the ratio to the backend's
+            assert float(r["hand_s"]) == pytest.approx(min(float(h["wall_s"]) for h in hand), rel=1e-5)
+            assert float(r["ratio"]) == pytest.approx(float(r["hand_s"]) / float(r["backend_s"]), rel=1e-4)
     side = list(csv.DictReader(open(out / "side_by_side.csv", encoding="utf-8")))
     assert len(side) == 1 and float(side[0]["rhs_mismatch"]) < 1e-12 and float(side[0]["rhs_ratio"]) > 0
     assert (out / "bench_two_mass_oscillator_tiny.png").stat().st_size > 10_000
     summary = (out / "summary.md").read_text(encoding="utf-8")
     assert "## two_mass_oscillator_tiny" in summary and "Pick **" in summary and "closed form" in summary
+
+
+def test_naive_run_over_budget_gives_a_lower_bound_of_the_speedup():
+    from multipole.bench import _Bar, bench_scene
+    sc = loads(S.stiff_drive_train(t_end=0.5), "s.yaml")
+    rep = bench_scene(sc, ["auto"], [1e-6], 1, ["numpy"], 4e5, _Bar(1, False), naive_budget=1e3)
+    side = rep.side
+    assert side["naive_status"].startswith("skipped")
+    p = {k: float(v) for k, v in sc.network.params.items()}
+    bound = explicit_stability_bound(np.linalg.eigvals(S._stiff_matrix(p)), "RK45", 0.5)
+    assert side["naive_min_nfev"] == bound["nfev"] > 1e3
+    assert side["naive_lower_s"] == pytest.approx(bound["nfev"] * side["rhs_hand_us"] * 1e-6)
+    auto = [r for r in rep.runs if r.solver == "auto" and r.backend == "numpy"]
+    assert side["naive_speedup_min"] == pytest.approx(side["naive_lower_s"] / auto[0].wall_s)
+    hand = [r for r in rep.runs if r.backend == "scipy-hand"]
+    assert {r.status for r in hand if r.solver in ("RK45", "DOP853")} == {"skipped"}      # stability bound
+    assert all(r.status == "ok" and r.err_max < 1e-4 for r in hand if r.solver in ("Radau", "BDF", "LSODA"))

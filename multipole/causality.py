@@ -63,6 +63,12 @@ def placeholder_needs(prim) -> tuple[str, str] | None:
     return needs.strip(), fix if isinstance(fix, str) else ""
 
 
+def _listing(names) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    names = list(names)
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
 def der(sym: sp.Symbol) -> sp.Symbol:
     """Symbol for the time derivative of ``sym``."""
     return var(f"der({sym.name})")
@@ -625,7 +631,7 @@ class _Analyser:
             other = dom.effort if flows else dom.flow
             self.diagnostics.append(Diagnostic(
                 "source_conflict",
-                f"{' and '.join(sources)} both impose the {word} on the same "
+                f"{_listing(sources)} {'both' if len(sources) == 2 else 'all'} impose the {word} on the same "
                 + ("rigid node" if flows else "massless node")
                 + f" ({' + '.join(elements)}): {'kinematic' if flows else 'static'} over-determination; "
                 f"the {other} there is left undetermined ({'static' if flows else 'kinematic'} under-determination)",

@@ -71,6 +71,8 @@ def test_two_speeds_and_one_torque_are_accepted_three_speeds_or_two_torques_are_
     assert "over-determination" in out
     three = pipeline.check(load(WEBER / "planetary_three_speeds.yaml"))
     assert {"source_conflict"} <= {d.code for d in three.errors}
+    conflict = next(d for d in three.errors if d.code == "source_conflict")
+    assert conflict.message.startswith("carrier, ring and sun all impose the angular velocity")
     two_torques = """
     elements:
       pg:      {type: planetary, z_sun: 24, z_ring: 72}

@@ -295,18 +295,22 @@ def _normal_level(children, connections, params, quantities, signals, r1, r2, se
 
 # -- gear trains -------------------------------------------------------------------------------
 
-def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None):
-    """Spur stages in series: stage k has radii r1[k], r2[k]; ``J`` (optional, kg·m²) are the
-    inertias of the n−1 intermediate shafts (massless without)."""
+def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None, z1=None):
+    """Spur stages in series: stage k has radii r1[k], r2[k] [m]; ``J`` (optional, kg·m²) are the
+    inertias of the n−1 intermediate shafts (massless without); ``z1`` (optional) the teeth of each
+    stage's driving wheel, so that a stiffness law of the mesh phase q runs at each stage's own
+    tooth frequency (q = z1[k]·φ of that stage's input shaft)."""
     if len(r1) != len(r2) or not r1:
         raise ModelError("bad_value", "gear_train needs lists r1 and r2 of the same, non-zero length")
     n = len(r1)
     if J is not None and len(J) != n - 1:
         raise ModelError("bad_value", f"gear_train with {n} stages needs {n - 1} intermediate inertias J")
+    if z1 is not None and len(z1) != n:
+        raise ModelError("bad_value", f"gear_train with {n} stages needs {n} tooth numbers z1 (one per stage)")
     children, connections = {}, []
     for k in range(n):
         children[f"s{k + 1}"] = spur_stage(r1[k], r2[k], level, internal, c=c if level == "elastic" else None,
-                                           d=d if level == "elastic" else 0.0)
+                                           d=d if level == "elastic" else 0.0, z1=None if z1 is None else z1[k])
         if k == 0:
             continue
         if J is None:
@@ -324,7 +328,8 @@ def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None):
 # -- catalogue ---------------------------------------------------------------------------------
 
 _LAW_DOC = ("a number or an expression of the mesh phase q = z1*phi1 [rad] (one tooth engagement = 2*pi), "
-            "e.g. 'c0*(1 + 0.2*cos(q))'")
+            "e.g. 'c0*(1 + 0.2*cos(q))', or a table over one engagement, symmetric about its middle: "
+            "'interp(acos(cos(q)), [1.1, 1.4], [c_single, c_double])'")
 
 SPUR_PARAMS = [
     Param("r1", "m", "operating pitch radius of wheel 1 (port a)"),
@@ -377,6 +382,10 @@ register(ElementType(
      Param("c", "N/m", "elastic: mesh stiffness of every stage, " + _LAW_DOC, None, "law", law_var="q"),
      Param("d", "N*s/m", "elastic: mesh damping of every stage", 0.0),
      Param("J", "kg*m^2", "inertias of the intermediate shafts (n-1 values); massless if omitted", None,
-           "numbers")],
+           "numbers"),
+     Param("z1", "-", "teeth of the driving wheel of each stage (n values); the mesh phase of stage k is "
+           "q = z1[k]*phi of its input shaft", None, "numbers")],
     {"ratio": "-: overall ratio omega_a/omega_b", "s<k>.force": "N: mesh force of stage k",
-     "s<k>.deflection": "m: mesh deflection of stage k (elastic)"}))
+     "s<k>.deflection": "m: mesh deflection of stage k (elastic)",
+     "s<k>.stiffness": "N/m: current mesh stiffness of stage k (elastic)",
+     "s<k>.phase": "rad: mesh phase of stage k (stiffness law of q)"}))

@@ -177,6 +177,60 @@ def test_time_varying_mesh_stiffness_gives_the_quasi_static_transmission_error()
     assert np.allclose(res["mesh.stiffness"], c0 * (1 + eps * np.cos(res["mesh.phase"])), rtol=1e-12)
 
 
+def _wrapped_table(q, points, values):
+    """The stiffness table evaluated independently: distance of q from the middle of the tooth
+    engagement, |q mod 2π| in [0, π], then straight lines through the points (numpy)."""
+    return np.interp(np.abs(np.arctan2(np.sin(q), np.cos(q))), points, values)
+
+
+def test_mesh_stiffness_table_gives_the_quasi_static_transmission_error():
+    """c(q) from a table (single/double tooth contact, linear between the points): on the plateaus
+    the pinion lags the rigid kinematics by exactly M1/(r1²·c(q)) with c from the table.
+
+    Each kink of the table excites the mesh mode (ω_n = r1·sqrt(c/J1) ≈ 6.3e3 rad/s); the scene's
+    mesh damping (ζ ≈ 0.03, decay rate ≈ 200 1/s) lets it die out within 20 ms, i.e. 0.4 rad of mesh
+    phase at 20 rad/s, so the plateau check starts 0.4 rad after a kink.  In between (during the
+    ramps) the lag is bounded by the ramp's excitation, Δẋ/ω_n ≲ 1 % of the error."""
+    res = pipeline.run(load(WEBER / "spur_elastic_table.yaml"), progress=False)
+    c1, c2, M1, w1, z1 = 1e8, 1.6e8, 10.0, 1.0, 20
+    points, values = [1.1, 1.4], [c1, c2]
+    q = res["mesh.phase"]
+    c = _wrapped_table(q, points, values)
+    assert q[-1] >= 2 * np.pi * 3                                   # three tooth engagements
+    assert np.allclose(res["mesh.stiffness"], c, rtol=1e-12)         # the table, exactly
+    lag = q / z1 - (w1 * res.t - M1 / (R1 * c1) / R1)                # against the unloaded rigid kinematics
+    expected = M1 / (R1**2 * c)
+    qw = np.abs(np.arctan2(np.sin(q), np.cos(q)))
+    settled = (qw < points[0] - 0.4) | (qw > points[1] + 0.4)
+    for plateau, level in ((qw < points[0], c1), (qw > points[1], c2)):      # both contact zones reached
+        assert np.count_nonzero(settled & plateau) > 100, level
+    assert np.max(np.abs(lag - expected)[settled]) <= 2e-4 * expected.max()
+    assert np.max(np.abs(lag - expected)) <= 1e-2 * expected.max()
+    assert np.ptp(lag) == pytest.approx(M1 / R1**2 * (1 / c1 - 1 / c2), rel=0.02)   # the table's contrast
+
+
+def test_gear_train_stages_have_their_own_mesh_phase():
+    """gear_train z1: stage k's mesh phase is z1[k] times the angle of its own input shaft, so a
+    stiffness law of q runs at each stage's tooth frequency (constant speed: q_k = z1[k]·ω_k·t)."""
+    w_in = 3.0
+    res = run(f"""
+    elements:
+      drive:   {{type: speed_source, value: {w_in}}}
+      gearbox: {{type: gear_train, r1: [0.02, 0.025], r2: [0.05, 0.08], level: elastic, z1: [20, 25],
+                 c: "1.0e8*(1 + 0.2*cos(q))", d: 2000}}
+      out:     {{type: inertia, J: 1.0e-2, omega0: {w_in * 0.02 / 0.05 * 0.025 / 0.08}}}
+    connections:
+      - [drive.p, gearbox.a]
+      - [gearbox.b, out.a]
+    outputs: [gearbox.s1.phase, gearbox.s2.phase, gearbox.s1.stiffness]
+    simulate: {{t_end: 0.5, dt_out: 0.01, rtol: 1.0e-9, atol: 1.0e-12}}
+    """)
+    w_mid = -w_in * 0.02 / 0.05                                       # countershaft, reversed
+    assert np.allclose(res["gearbox.s1.phase"], 20 * w_in * res.t, rtol=1e-9, atol=1e-9)
+    assert np.allclose(res["gearbox.s2.phase"], 25 * w_mid * res.t, rtol=1e-4, atol=1e-4)
+    assert np.allclose(res["gearbox.s1.stiffness"], 1e8 * (1 + 0.2 * np.cos(20 * w_in * res.t)), rtol=1e-9)
+
+
 def test_weber_27_with_varying_stiffness_and_constant_torque():
     """Four-pole (no inertias), M1 constant: ω1 = −(r2/r1)·ω2 + (1/r1²)·d/dt(M1/c(q)), and with
     d/dt(1/c) = −c'(q)·z1·ω1/c² this is ω1·(1 − M1·c0·ε·z1·sin q/(r1²·c²)) = −(r2/r1)·ω2."""
@@ -324,6 +378,74 @@ def test_placeholder_words_come_from_the_primitive_not_from_the_kernel():
     assert [d.code for d in an.errors] == ["underdetermined"]
 
 
+# -- internal mesh (ring gear) at the elastic and normal levels -----------------------------------
+
+R_RING = 0.08                                   # ring gear radius [m], r2 > r1
+
+
+def _internal_step_solution(t, M, J1, J2, c_u):
+    """Torque step M on J1, ring J2 free, circumferential stiffness c_u, internal mesh (v_u2 = +r2·ω2).
+
+    Deflection rate x' = r1·ω1 − r2·ω2, J1·ω1' = M − r1·c_u·x, J2·ω2' = +r2·c_u·x, so
+    x'' + ω_n²·x = r1·M/J1 with ω_n² = c_u·(r1²/J1 + r2²/J2):  x = (r1·M/(J1·ω_n²))·(1 − cos ω_n t)
+    and ω2 = (r2·c_u/J2)·∫x dt = (r2·c_u/J2)·(r1·M/(J1·ω_n²))·(t − sin(ω_n t)/ω_n) >= 0 (same sense)."""
+    w_n = np.sqrt(c_u * (R1**2 / J1 + R_RING**2 / J2))
+    x_static = R1 * M / (J1 * w_n**2)
+    F_u = c_u * x_static * (1 - np.cos(w_n * t))
+    w2 = R_RING * c_u / J2 * x_static * (t - np.sin(w_n * t) / w_n)
+    return w_n, F_u, w2
+
+
+def test_internal_elastic_mesh_keeps_the_direction_and_rings_at_the_free_free_frequency():
+    M, J1, J2, c = 5.0, 1e-3, 4e-2, 5e7
+    res = run(stage_scene(f"{{type: spur_stage, r1: {R1}, r2: {R_RING}, internal: true, level: elastic, c: {c}}}",
+                          shaft_b="{type: torque_source, value: 0}", j2=str(J2))
+              + "simulate: {t_end: 0.01, dt_out: 2.0e-6, solver: DOP853, rtol: 1.0e-11, atol: 1.0e-13}\n")
+    w_n, F_u, w2 = _internal_step_solution(res.t, M, J1, J2, c)
+    assert np.max(np.abs(res["mesh.force"] - F_u)) <= 1e-6 * F_u.max()
+    assert np.max(np.abs(res["wheel.omega"] - w2)) <= 1e-6 * w2.max()
+    assert zero_crossing_frequency(res.t, res["mesh.force"] - F_u.mean()) == pytest.approx(w_n, rel=1e-3)
+    # both shafts turn in the direction of the torque; on average ω2 = (r1/r2)·ω1 (i = +r2/r1)
+    assert res["pinion.omega"][-1] > 0 and np.all(res["wheel.omega"] >= -1e-12)
+    J_eff = J1 + J2 * (R1 / R_RING) ** 2
+    assert np.mean(res["wheel.omega"][-500:]) == pytest.approx(R1 / R_RING * M * np.mean(res.t[-500:]) / J_eff,
+                                                               rel=2e-3)
+
+
+def test_internal_normal_mesh_keeps_the_direction_and_rings_at_the_base_radius_frequency():
+    """Frictionless normal level, contact at the pitch point: the circumferential stiffness is
+    c_n·cos²α, the normal force F_u/cos α; ring free as above, ring held: ω_n = r1·cos α·sqrt(c_n/J1)."""
+    M, J1, J2, c_n = 5.0, 1e-3, 4e-2, 5e7
+    mesh = f"{{type: spur_stage, r1: {R1}, r2: {R_RING}, internal: true, level: normal, c_n: {c_n}, s: 0, mu: 0}}"
+    opts = "simulate: {t_end: 0.01, dt_out: 2.0e-6, solver: DOP853, rtol: 1.0e-11, atol: 1.0e-13}\n"
+    res = run(stage_scene(mesh, shaft_b="{type: torque_source, value: 0}", j2=str(J2)) + opts)
+    w_n, F_u, w2 = _internal_step_solution(res.t, M, J1, J2, c_n * np.cos(ALPHA) ** 2)
+    assert np.max(np.abs(res["mesh.force"] - F_u / np.cos(ALPHA))) <= 1e-6 * F_u.max() / np.cos(ALPHA)
+    assert np.max(np.abs(res["wheel.omega"] - w2)) <= 1e-6 * w2.max()
+    assert np.all(res["wheel.omega"] >= -1e-12) and res["pinion.omega"][-1] > 0
+    held = run(stage_scene(mesh, j2=str(J2)) + opts)
+    F_static = M / (R1 * np.cos(ALPHA))
+    assert zero_crossing_frequency(held.t, held["mesh.force"] - F_static) == pytest.approx(
+        R1 * np.cos(ALPHA) * np.sqrt(c_n / J1), rel=1e-3)
+    assert held["mesh.force"].max() == pytest.approx(2 * F_static, rel=5e-3)
+
+
+@pytest.mark.parametrize("g", [0.0, 0.002, -0.003])
+def test_internal_mesh_slides_with_the_difference_of_the_speeds(g):
+    """Internal mesh, rigid kinematics (r1·ω1 = r2·ω2): ρ1 = r1·sin α + g, ρ2 = r2·sin α + g, so
+    Δv_t = (ρ1/r1)·r1·ω1 − (ρ2/r2)·r2·ω2 = g·(ω1 − ω2): the difference, not the sum, of the speeds."""
+    J1, w2 = 1e-3, 4.0
+    sc = scene(stage_scene(f"{{type: spur_stage, r1: {R1}, r2: {R_RING}, internal: true, level: normal, "
+                           f"c_n: 2.0e8, s: {g}, d_t: 50}}", shaft_b=f"{{type: speed_source, value: {w2}}}",
+                           outputs="[mesh.sliding_velocity]"))
+    m = pipeline.model(sc)
+    w1 = R_RING / R1 * w2
+    x = np.zeros(len(m.state_names))
+    x[m.state_names.index("pinion.p")] = J1 * w1
+    v_t = m.outputs(0.0, x)[0]
+    assert v_t == pytest.approx(g * (w1 - w2), rel=1e-12, abs=1e-15)
+
+
 # -- power split (Weber §5.6, Bild 28/29) --------------------------------------------------------
 
 def test_rigid_power_split_is_reported_with_both_paths():
@@ -369,10 +491,20 @@ def test_mounting_error_gives_a_circulating_preload_and_shifts_the_split():
 
 def test_two_stage_gear_ratio_and_torques():
     """Bild 27: i = (−r2/r1)·(−r4/r3); with the output at rest the stage forces are M/r1 and −(r2/r3)·M/r1."""
-    res = pipeline.run(load(WEBER / "two_stage.yaml"), progress=False)
+    sc = load(WEBER / "two_stage.yaml")
+    res = pipeline.run(sc, progress=False)
     i = (-0.05 / 0.02) * (-0.08 / 0.025)
     assert np.allclose(res["input.omega"][1:], i * res["output.omega"][1:], rtol=1e-9)
     assert res["gearbox.ratio"][0] == pytest.approx(i)
+    # the countershaft and the output are in derivative causality; the one state obeys
+    # J_eff·ω_in' = M(t) − d·ω_in/i², J_eff = J_in + J_shaft·(r1/r2)² + J_out/i²
+    J_in, J_shaft, J_out, d = 2e-4, 5e-4, 2e-2, 0.1
+    J_eff = J_in + J_shaft * (0.02 / 0.05) ** 2 + J_out / i**2
+    m = pipeline.model(sc)
+    assert m.state_names == ["input.p"]
+    for t, w in ((0.1, 5.0), (0.5, -10.0)):
+        M = 1 - np.exp(-t / 0.05)
+        assert m.rhs(t, np.array([J_in * w]))[0] == pytest.approx(J_in / J_eff * (M - d * w / i**2), rel=1e-12)
     res = run("""
     elements:
       motor:   {type: torque_source, value: 2}

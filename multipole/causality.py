@@ -632,11 +632,12 @@ class _Analyser:
             self.diagnostics.append(Diagnostic(
                 "source_conflict",
                 f"{_listing(sources)} {'both' if len(sources) == 2 else 'all'} impose the {word} on the same "
-                + ("rigid node" if flows else "massless node")
+                + (("rigid node" if flows else "massless node") if dom.node_kind == "b"
+                   else ("series branch" if flows else "node"))
                 + f" ({' + '.join(elements)}): {'kinematic' if flows else 'static'} over-determination; "
                 f"the {other} there is left undetermined ({'static' if flows else 'kinematic'} under-determination)",
-                "remove one source or put a spring between them" if flows else
-                "put an inertia on that node or drive one side with a speed source instead",
+                f"remove one source or put {dom.compliance} between them" if flows else
+                f"put {dom.inertia} between the sources or drive one side with a {dom.flow} source instead",
                 elements=elements))
             return
         path = self.loop_path(owners)
@@ -651,9 +652,10 @@ class _Analyser:
         else:
             self.diagnostics.append(Diagnostic(
                 "static_overdetermination",
-                f"static over-determination: the efforts around {', '.join(elements)} are imposed twice; "
-                f"kinematic under-determination: nothing decides the flow",
-                "add a storage element (inertia or compliance) in this loop", elements=elements, path=path))
+                f"static over-determination: the {dom.effort} around {', '.join(elements)} is imposed twice; "
+                f"kinematic under-determination: nothing decides how the {dom.flow} splits",
+                f"add a storage element ({dom.inertia} or {dom.compliance}) in this loop", elements=elements,
+                path=path))
 
     def report_under(self, missing):
         names = sorted(v.name for v in missing)

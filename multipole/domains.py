@@ -36,6 +36,8 @@ class Domain:
     momentum: str            #: time integral of the effort
     momentum_unit: str
     node_kind: str           #: "a" (common effort) or "b" (common flow)
+    inertia: str = "an inertia"          #: the storage of the effort's integral, as a fix names it
+    compliance: str = "a compliance"     #: the storage of the flow's integral, as a fix names it
 
     @property
     def across(self) -> str:
@@ -60,13 +62,13 @@ DOMAINS: dict[str, Domain] = {
     d.name: d
     for d in (
         Domain("rotational", "torque", "N*m", "angular velocity", "rad/s", "angle", "rad",
-               "angular momentum", "N*m*s", "b"),
+               "angular momentum", "N*m*s", "b", "an inertia", "a torsion spring"),
         Domain("translational", "force", "N", "velocity", "m/s", "displacement", "m",
-               "momentum", "N*s", "b"),
+               "momentum", "N*s", "b", "a mass", "a spring"),
         Domain("electrical", "voltage", "V", "current", "A", "charge", "C",
-               "flux linkage", "V*s", "a"),
+               "flux linkage", "V*s", "a", "an inductor", "a capacitor"),
         Domain("hydraulic", "pressure", "Pa", "volume flow", "m^3/s", "volume", "m^3",
-               "pressure momentum", "Pa*s", "a"),
+               "pressure momentum", "Pa*s", "a", "a line inertance", "an accumulator"),
     )
 }
 

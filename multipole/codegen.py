@@ -82,20 +82,68 @@ class _Printer(PythonCodePrinter):
     def _print_Rational(self, x):
         return repr(float(x))
 
+    #: {switching function (parameters folded): index} while printing a function that runs in a
+    #: fixed mode: every switch then reads the side it is on from ``_mode[index]`` (±1) instead of
+    #: the sign of its argument, so the function is smooth inside one integration segment
+    modes: dict | None = None
+
+    def _side(self, g) -> str | None:
+        """``"_mode[k]"`` (or its negative) for a locked switching function ``g``, else None."""
+        if self.modes is None:
+            return None
+        if g in self.modes:
+            return f"_mode[{self.modes[g]}]"
+        if -g in self.modes:
+            return f"(-_mode[{self.modes[-g]}])"
+        return None
+
     def _print_Heaviside(self, e):
+        side = self._side(e.args[0])
+        if side is not None:
+            return f"(1.0 if {side} > 0 else 0.0)"
         a = self._print(e.args[0])
         at0 = e.args[1] if len(e.args) > 1 else sp.Rational(1, 2)
         return f"(1.0 if ({a}) > 0 else ({float(at0)!r} if ({a}) == 0 else 0.0))"
 
     def _print_sign(self, e):
+        side = self._side(e.args[0])
+        if side is not None:
+            return side
         a = self._print(e.args[0])
         return f"math.copysign(1.0, {a}) if ({a}) != 0 else 0.0"
 
+    def _print_Abs(self, e):
+        side = self._side(e.args[0])
+        if side is not None:
+            return f"({side}*({self._print(e.args[0])}))"
+        return f"abs({self._print(e.args[0])})"
+
+    def _pick(self, e, first_if_positive: bool):
+        a, b = e.args
+        side = self._side(a - b) if len(e.args) == 2 else None
+        if side is None:
+            return None
+        return f"(({self._print(a)}) if {side} {'>' if first_if_positive else '<'} 0 else ({self._print(b)}))"
+
     def _print_Max(self, e):
-        return "max(" + ", ".join(self._print(a) for a in e.args) + ")"
+        return self._pick(e, True) or "max(" + ", ".join(self._print(a) for a in e.args) + ")"
 
     def _print_Min(self, e):
-        return "min(" + ", ".join(self._print(a) for a in e.args) + ")"
+        return self._pick(e, False) or "min(" + ", ".join(self._print(a) for a in e.args) + ")"
+
+    def _print_Piecewise(self, e):
+        if self.modes is None:
+            return super()._print_Piecewise(e)
+        text = "math.nan"
+        for expr, cond in reversed(e.args):
+            if cond == sp.true:
+                text = f"({self._print(expr)})"
+                continue
+            side = self._side(cond.lhs - cond.rhs) if isinstance(cond, sp.core.relational.Relational) else None
+            test = (f"{side} {'<' if cond.rel_op in ('<', '<=') else '>'} 0" if side is not None and
+                    cond.rel_op in ('<', '<=', '>', '>=') else self._print(cond))
+            text = f"(({self._print(expr)}) if {test} else {text})"
+        return text
 
 
 def _ident(name: str, taken: set) -> str:
@@ -123,6 +171,13 @@ def switching_functions(expr) -> list:
                 if isinstance(c, sp.core.relational.Relational):
                     out.append(c.lhs - c.rhs)
     return out
+
+
+def switch_list(writer) -> list:
+    """The model's switching functions in a fixed order: those of the evaluation order's steps and
+    of the inputs (a step in a source is an event too); constant ones are left out."""
+    exprs = [e for u in writer.units for e in u.exprs] + [sp.sympify(e) for e in writer.eq.inputs.values()]
+    return list(dict.fromkeys(s for e in exprs for s in switching_functions(e) if s.free_symbols))
 
 
 class Model:
@@ -155,6 +210,9 @@ class Model:
         self.outputs = namespace["outputs"]
         self.switches = namespace["switches"]
         self.n_switches = namespace["N_SWITCHES"]
+        self.mode = namespace.get("_mode")              # the sides the *_in_mode functions use
+        self.rhs_in_mode = namespace.get("rhs_in_mode", self.rhs)
+        self.jac_in_mode = namespace.get("jac_in_mode", self.jac)
         self.switch_text = namespace["SWITCH_TEXT"]
         self.values = namespace["values"]
         self.value_names = namespace["VALUE_NAMES"]
@@ -168,6 +226,11 @@ class Model:
             if rep in known:
                 out[name] = sign * known[rep]
         return out
+
+    def set_mode(self, sides) -> None:
+        """Hold switching function k on side ``sides[k]`` (±1) in ``rhs_in_mode``/``jac_in_mode``."""
+        if self.mode is not None:
+            self.mode[:] = [1.0 if s > 0 else -1.0 for s in sides]
 
     def reset_stats(self):
         for k in self.stats:
@@ -227,9 +290,16 @@ class _Writer:
         self._printed: dict = {}
         self._lines: dict = {}
 
+    def locked(self, modes: dict | None):
+        """Print in fixed switching modes (``modes``: switching function → index) or, with None, as
+        plain functions of the state."""
+        self.printer.modes = None if modes is None else {sp.sympify(g).xreplace(self.pvals): k
+                                                           for g, k in modes.items()}
+
     def P(self, e) -> str:
         e = sp.sympify(e)
-        text = self._printed.get(e)
+        key = (e, self.printer.modes is not None)
+        text = self._printed.get(key)
         if text is None:
             folded = e.xreplace(self.pvals)
             if folded.has(sp.zoo, sp.oo, sp.nan):
@@ -237,7 +307,7 @@ class _Writer:
                 raise ModelError("infinite_value", f"the parameters make {e} infinite"
                                  + (f" ({', '.join(bad)} = 0)" if bad else ""),
                                  "a zero inertia, stiffness or resistance divides; use a node or a rigid coupling instead")
-            text = self._printed[e] = self.printer.doprint(folded)
+            text = self._printed[key] = self.printer.doprint(folded)
         return text
 
     def prologue(self, units, extra=()) -> list:
@@ -254,7 +324,7 @@ class _Writer:
         return lines
 
     def unit_lines(self, u: _Unit) -> list:
-        key = id(u)
+        key = (id(u), self.printer.modes is not None)
         if key not in self._lines:
             self._lines[key] = self._unit_lines(u)
         return self._lines[key]
@@ -343,10 +413,10 @@ class _Writer:
         return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + self.prologue(units, needed) + \
             [f"    return {ret}", ""]
 
-    def jacobian(self) -> list:
+    def jacobian(self, name: str = "jac") -> list:
         """Forward-mode Jacobian through the evaluation order (sparse in the states)."""
         units = _closure(self.units, self.eq.derivatives)
-        out = ["def jac(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
+        out = [f"def {name}(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
         out += self.prologue(units, self.eq.derivatives)
         D: dict = {}
         count = 0
@@ -437,6 +507,9 @@ def generate(eq: Equations, outputs=()) -> str:
     """
     w = _Writer(eq)
     N, P = w.names, w.P
+
+    def ders():
+        return ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
     src = ["import math", "import numpy as np", "",
            "_stats = {'rhs_calls': 0, 'jac_calls': 0, 'newton_iterations': 0, 'newton_solves': 0}",
            f"_guess = {[[0.0] * len(b.variables) for b in eq.blocks]!r}", ""]
@@ -445,9 +518,8 @@ def generate(eq: Equations, outputs=()) -> str:
         src.insert(2, "from scipy.sparse import csr_array")
         src += w.affine_rhs(affine)
     else:
-        ders = ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
         src += w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives,
-                          f"np.array([{ders}])", ["    _stats['rhs_calls'] += 1"])
+                          f"np.array([{ders()}])", ["    _stats['rhs_calls'] += 1"])
     out_exprs = [eq.output(o) for o in outputs]
     needed = set().union(*(e.free_symbols for e in out_exprs)) if out_exprs else set()
     src += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed,
@@ -456,13 +528,19 @@ def generate(eq: Equations, outputs=()) -> str:
     src += ["VALUE_NAMES = " + repr([v.name for v in every])]
     src += w.function("values", "Every input and computed variable, in evaluation order.", every,
                       f"[{', '.join(N[v] for v in every)}]")
-    sw = list(dict.fromkeys(s for u in w.units for e in u.exprs for s in switching_functions(e)
-                            if s.free_symbols))
+    sw = switch_list(w)
     needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
     src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"]
     src += w.function("switches", "Switching functions: a sign change is an event.", needed,
                       f"[{', '.join(P(s) for s in sw)}]")
     src += w.jacobian()
+    if sw:        # the same right-hand side and Jacobian with every switch held on one side
+        w.locked({g: k for k, g in enumerate(sw)})
+        src += ["_mode = [1.0] * N_SWITCHES", ""]
+        src += w.function("rhs_in_mode", "d/dt of the states with every switch on the side _mode says.",
+                          eq.derivatives, f"np.array([{ders()}])", ["    _stats['rhs_calls'] += 1"])
+        src += w.jacobian("jac_in_mode")
+        w.locked(None)
     return "\n".join(src) + "\n"
 
 

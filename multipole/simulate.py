@@ -4,7 +4,10 @@ The driver steps scipy's ``OdeSolver`` classes itself, so that it can
 
 * sample the outputs on the ``dt_out`` grid from the dense output,
 * find the zero crossings of the switching functions (steps, max/min, abs, sign, tables) and
-  restart the integrator exactly there (switching laws are events, not kinks inside a step),
+  restart the integrator exactly there (switching laws are events, not kinks inside a step):
+  during a segment every switch is held on the side it started on (``Model.rhs_in_mode``), so
+  the integrator sees a smooth right-hand side, and a crossing found after a step ends the
+  segment at the root of the switching function,
 * count accepted steps (and, for explicit Runge–Kutta methods, rejected ones),
 * show a progress bar on a terminal.
 
@@ -177,13 +180,16 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     while n and k_out < len(t_grid):
         kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
         if solver in IMPLICIT:
-            kw["jac"] = model.jac
-        ode = cls(rhs, t, x, t_end, **kw)
-        stats["segments"] += 1
+            kw["jac"] = model.jac_in_mode if model.n_switches else model.jac
         g_sign = np.sign(np.array(model.switches(t, x), dtype=float))
         for k, sgn in forced.items():      # just past an event: the new side's sign
             g_sign[k] = sgn
         forced = {}
+        if model.n_switches:               # hold every switch on its side for this segment
+            g_sign = _sides(model, t, x, g_sign, t_end)
+            model.set_mode(g_sign)
+        ode = cls(rhs, t, x, t_end, **kw)
+        stats["segments"] += 1
         event = None
         while ode.status == "running" and event is None:
             try:
@@ -244,18 +250,37 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events, units)
 
 
+def _sides(model, t, x, signs, t_end):
+    """The side of every switching function for the segment starting at (t, x): its sign, or where
+    it is zero, the sign it takes just after t (first from t alone, then along the motion)."""
+    signs = np.array(signs, dtype=float)
+    zero = signs == 0
+    if zero.any():
+        dt = 1e-9 * max(1.0, abs(t_end))
+        later = np.sign(np.array(model.switches(t + dt, x), dtype=float))
+        signs[zero] = later[zero]
+    zero = signs == 0
+    if zero.any():
+        model.set_mode(np.where(signs == 0, 1.0, signs))
+        moved = np.asarray(x) + 1e-6 * max(1.0, abs(t_end)) * model.rhs_in_mode(t, x)
+        later = np.sign(np.array(model.switches(t, moved), dtype=float))
+        signs[zero] = later[zero]
+    return np.where(signs == 0, 1.0, signs)
+
+
 def _rejecting_unsolvable_loops(model):
     """``(rhs, failures)``: the model's right-hand side, returning NaN where an algebraic loop has
     no Newton solution at a trial state, so that the integrator rejects that step and retries a
     shorter one (a NaN error estimate is a rejection); the messages are kept in ``failures``.
     A failure at an accepted state still ends the run, with the Newton message."""
     failures: list = []
+    base = model.rhs_in_mode if model.n_switches else model.rhs
     if "newton(" not in getattr(model, "source", ""):
-        return model.rhs, failures
+        return base, failures
 
     def rhs(t, x):
         try:
-            return model.rhs(t, x)
+            return base(t, x)
         except NewtonError as exc:
             failures.append(str(exc))
             return np.full(len(x), np.nan)

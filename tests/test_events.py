@@ -37,3 +37,26 @@ def test_one_sided_contact_is_found_as_two_events():
     before = res.t < t_in - 1e-4
     assert np.allclose(res["body.v"][before], v0, rtol=1e-12)
     assert np.all(res["stop.q"][after] < 0)
+
+
+STEP_PUSH = """
+name: step_push
+parameters: {m: 2.0, F: 3.0, t1: 0.0123}
+elements:
+  push: {type: force_source, value: "F*step(t - t1)"}
+  body: {type: mass, m: m}
+connections:
+  - [push.p, body.a]
+outputs: [body.v]
+simulate: {t_end: 0.05, dt_out: 1.0e-3, solver: RK45, rtol: 1.0e-9, atol: 1.0e-12}
+"""
+
+
+def test_a_step_in_a_source_is_an_event_and_each_segment_is_smooth():
+    """v = F/m·max(t − t1, 0): the step's time is found exactly, and with the switch held on its
+    side in each segment both arcs are polynomials the method integrates without a rejection."""
+    m, F, t1 = 2.0, 3.0, 0.0123
+    res = run(STEP_PUSH)
+    assert [round(t, 12) for t, _ in res.events] == [t1]
+    assert np.allclose(res["body.v"], F / m * np.maximum(res.t - t1, 0.0), rtol=0, atol=1e-12)
+    assert res.stats["segments"] == 2 and res.stats["rejected"] == 0

@@ -318,16 +318,13 @@ def _rope_dop853_work(p, t_end, rtol, atol, frozen=False) -> tuple[int, int]:
     return steps, (nfev - 2 * segments - 3 * dense) // 12
 
 
-@pytest.mark.xfail(strict=True, reason="step-size collapse before each switch: the right-hand side evaluates "
-                   "k*min(q, 0) at the trial states, so the step that crosses a switch sees the jump of the "
-                   "third derivative and is rejected down to ~2e-5 s before the sign change is seen; freezing "
-                   "the branch per segment would remove it (see the frozen hand model)")
 def test_slack_rope_events_cost_no_step_size_collapse():
     sc = scene(S.slack_rope())
     res = pipeline.run(sc, progress=False)
     segments = res.stats["segments"]
-    # smooth arcs between switches need no rejections: at most one per restart (measured 185 rejected,
-    # about 12 per switch, in 240 steps against a budget of 213 for the 16 segments)
+    # every switch is held on its side for a segment (Model.rhs_in_mode), so each arc is smooth and
+    # needs no rejections: at most one per restart (before the switches were held: 185 rejected, about
+    # 12 per switch, in 240 steps against a budget of 213 for the 16 segments)
     assert res.stats["rejected"] <= segments
     assert res.stats["steps"] <= _rope_budget(params(sc), segments, sc.simulate["rtol"])
 

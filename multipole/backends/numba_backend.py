@@ -260,10 +260,7 @@ class CodegenMismatch(RuntimeError):
     """The kernel's code writer changed in a way this backend does not understand (-> numpy)."""
 
 
-def switch_list(writer) -> list:
-    """The switching functions, found by the same rule as :func:`multipole.codegen.generate`."""
-    return list(dict.fromkeys(s for u in writer.units for e in u.exprs for s in codegen.switching_functions(e)
-                              if s.free_symbols))
+switch_list = codegen.switch_list
 
 
 def _kernel_digest() -> str:

@@ -86,15 +86,16 @@ class _Printer(PythonCodePrinter):
     #: fixed mode: every switch then reads the side it is on from ``_mode[index]`` (±1) instead of
     #: the sign of its argument, so the function is smooth inside one integration segment
     modes: dict | None = None
+    mode_ref = "_mode[{k}]"           #: where the generated code reads the side of switch k
 
     def _side(self, g) -> str | None:
-        """``"_mode[k]"`` (or its negative) for a locked switching function ``g``, else None."""
+        """The side (±1) of a held switching function ``g`` as code (or its negative), else None."""
         if self.modes is None:
             return None
         if g in self.modes:
-            return f"_mode[{self.modes[g]}]"
+            return self.mode_ref.format(k=self.modes[g])
         if -g in self.modes:
-            return f"(-_mode[{self.modes[-g]}])"
+            return "(-" + self.mode_ref.format(k=self.modes[-g]) + ")"
         return None
 
     def _print_Heaviside(self, e):

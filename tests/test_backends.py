@@ -563,3 +563,14 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description="speed against error of the backends (docs/backends.md)")
     parser.add_argument("-o", "--output", default=str(ROOT / "docs" / "figures"))
     print(bench(Path(parser.parse_args().output)))
+
+
+def test_switches_are_held_on_their_side_in_compiled_segments(nb):
+    """The compiled loop holds every switch on its side for a segment, as the numpy backend does, so
+    the slack rope's arcs are smooth: at most one rejected step per restart, and the same events."""
+    path = ROOT / "diagrams" / "hard" / "slack_rope.yaml"
+    res = run_numba(path, solver="RK45")
+    ref = pipeline.run(load(path), solver="RK45", progress=False)
+    assert res.stats["rejected"] <= res.stats["segments"]
+    assert len(res.events) == len(ref.events) and np.allclose([t for t, _ in res.events],
+                                                               [t for t, _ in ref.events], atol=1e-9)

@@ -36,6 +36,10 @@ from numba.extending import intrinsic
 # fs (float64)
 F_T, F_H, F_H_OLD, F_ERR_OLD, F_T_OLD, F_H_DENSE, F_T_END, F_RTOL, F_ATOL, F_MAX_STEP = range(10)
 N_FS = 10
+#: the model's work array w: w[0] Newton iterations, w[1] Newton solves, w[2] Newton failures, then
+#: one side (±1) per switching function (read by the model functions, set at every segment start),
+#: then the Newton loops' guesses
+W_HEAD = 3
 # iw (int64)
 (I_KOUT, I_NEV, I_STEPS, I_REJECTED, I_NFEV, I_NJEV, I_NLU, I_SEGMENTS, I_STATUS, I_FRESH,
  I_CURRENT_JAC, I_LU_OK, I_SOL_OK, I_FORCED, I_FORCED_SIGN, I_NEWTON_IT) = range(16)
@@ -578,6 +582,18 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
     while iw[I_KOUT] < n_grid and taken < max_steps:
         if iw[I_FRESH]:                       # start of a segment: t = 0 or just past an event
             t = fs[F_T]
+            if n_sw:                          # the side every switch is held on in this segment
+                call_model(switches, t, x, g, w)
+                for k in range(n_sw):
+                    g_sign[k] = _sign(g[k])
+                if iw[I_FORCED] >= 0:
+                    g_sign[iw[I_FORCED]] = iw[I_FORCED_SIGN]
+                    iw[I_FORCED] = -1
+                call_model(switches, t + 1e-9 * max(1.0, t_end), x, g, w)
+                for k in range(n_sw):
+                    if g_sign[k] == 0.0:      # on the switch: the side it takes just after t
+                        g_sign[k] = _sign(g[k]) if g[k] != 0.0 else 1.0
+                    w[W_HEAD + k] = g_sign[k]
             call_model(rhs, t, x, f, w)
             iw[I_NFEV] += 1
             order = RA_ORDER if implicit else DP_ORDER
@@ -590,13 +606,6 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
                 iw[I_CURRENT_JAC] = 1
                 iw[I_LU_OK] = 0
                 iw[I_SOL_OK] = 0
-            if n_sw:
-                call_model(switches, t, x, g, w)
-                for k in range(n_sw):
-                    g_sign[k] = _sign(g[k])
-                if iw[I_FORCED] >= 0:
-                    g_sign[iw[I_FORCED]] = iw[I_FORCED_SIGN]
-                    iw[I_FORCED] = -1
             iw[I_SEGMENTS] += 1
             iw[I_FRESH] = 0
         if implicit:

@@ -21,6 +21,7 @@ Geometry is in drawing units (one unit is :data:`SCALE` inches in the figure).
 """
 from __future__ import annotations
 
+import re
 import textwrap
 from fractions import Fraction
 from collections import defaultdict
@@ -55,6 +56,10 @@ _HANG = 1.1          # spacing of cross-couplings hanging under the same junctio
 _TRACK = 0.32        # spacing of vertical tracks in a gap between columns
 _CORRIDOR = 0.28     # spacing of horizontal return tracks above/below the lanes
 _FONT = 8.0          # block labels [pt]
+_RATIO_CHARS = 14    # longest label written into a ratio block; longer ones go to a footnote
+_NOTE_CHARS = 24     # longest second line of a block
+COLLAPSE_ABOVE = 4   #: families of identical sub-elements longer than this are drawn collapsed
+DRAWN_HEAD = 2       #: members drawn before the placeholder of a collapsed family (plus the last)
 
 
 @dataclass
@@ -63,11 +68,14 @@ class Block:
 
     ``kind``: ``sum`` (Σ), ``dot`` (branching point), ``ratio`` (TF/MTF), ``gyrator``, ``storage``
     (I, C, C-field), ``resistance`` (R), ``source`` (Se, Sf), ``tap``, ``terminal`` (an unconnected
-    port), ``other`` (a one-port kind defined by an element library).
+    port), ``other`` (a one-port kind defined by an element library), ``repeat`` (the placeholder
+    of identical sub-elements drawn collapsed).
     ``row``: ``"f"`` (flow row), ``"e"`` (effort row) or ``"x"`` (between the rows).
     ``owner`` is the primitive path or the node name whose equations the block stands for;
     ``element`` the top-level element it belongs to (``""`` for a node joining elements).
     ``identity`` marks blocks that only pass a value on (dots, two-port sums).
+    ``bus``: a junction with many connections drawn as a line outside the rows (a branching bar
+    for its common variable, a collecting line ending in a Σ for its sum).
     """
 
     id: str
@@ -84,6 +92,7 @@ class Block:
     identity: bool = False
     conflict: bool = False
     derivative: bool = False
+    bus: bool = False
 
 
 @dataclass
@@ -94,6 +103,8 @@ class Arrow:
     are just the two ends and the wire is drawn red and dashed without a head).
     ``points`` is the drawn route from source to target; ``drawn`` is False for the second
     variable of a two-port connection inside an element (same wire as its partner).
+    ``hidden``: the variable belongs to a collapsed sub-element (no route); ``multiplicity`` > 1:
+    the drawn wire stands for that many wires to or from a collapsed run.
     """
 
     variable: str
@@ -105,6 +116,8 @@ class Arrow:
     points: list = field(default_factory=list)
     head: bool = True
     drawn: bool = True
+    hidden: bool = False
+    multiplicity: int = 1
 
 
 @dataclass
@@ -137,6 +150,9 @@ class Diagram:
     captions: tuple = ("", "")   # what the flows and efforts are, for the row captions
     lane_h: float = _LANE        # vertical distance between stacked lanes
     subgroups: list = field(default_factory=list)   # frames of networks nested inside an element
+    footnotes: list = field(default_factory=list)   # full texts of labels too long for their block
+    links: list = field(default_factory=list)       # gyrator couplings: (points, colour) flow row <-> effort row
+    collapsed: dict = field(default_factory=dict)   # placeholder block id -> hidden sub-element paths
 
     def arrow_of(self, variable: str) -> Arrow:
         """The arrow of a port variable (``"rotor.j.a.e"``)."""
@@ -164,23 +180,50 @@ def _num(value: float) -> str:
     return f"{value:.3g}"
 
 
-def _expr_text(expr, limit: int = 22) -> str:
-    """Short readable form of a sympy expression: round floats, cut long ones."""
+_GREEK = {name: chr(code) for name, code in (
+    ("alpha", 0x3B1), ("beta", 0x3B2), ("gamma", 0x3B3), ("delta", 0x3B4), ("epsilon", 0x3B5),
+    ("zeta", 0x3B6), ("eta", 0x3B7), ("theta", 0x3B8), ("kappa", 0x3BA), ("lambda", 0x3BB),
+    ("mu", 0x3BC), ("nu", 0x3BD), ("xi", 0x3BE), ("rho", 0x3C1), ("sigma", 0x3C3), ("tau", 0x3C4),
+    ("phi", 0x3C6), ("chi", 0x3C7), ("psi", 0x3C8), ("omega", 0x3C9))}
+
+
+def _pretty_name(name: str) -> str:
+    """``alpha`` -> ``α``, ``delta_P`` -> ``δ_P``; other names unchanged."""
+    head, sep, tail = name.partition("_")
+    return _GREEK[head] + sep + tail if head in _GREEK else name
+
+
+def _expr_text(expr) -> str:
+    """Readable form of a sympy expression: floats rounded to 4 digits, ``**`` as ``^``, Greek
+    names as letters.  Never shortened: a label too long for its block goes to a footnote."""
     expr = sp.sympify(expr).replace(sp.Heaviside, lambda *a: sp.Function("step")(a[0]))
     if expr.is_number:
         try:
             return _num(float(expr))
         except TypeError:
             pass
-    floats = {}
+    subs = {}
     for f in expr.atoms(sp.Float):
         r = float(f"{float(f):.4g}")
-        floats[f] = sp.Integer(int(r)) if r == int(r) else sp.Float(r, 4)
-    return _short(str(expr.xreplace(floats)).replace("**", "^"), limit)
+        subs[f] = sp.Integer(int(r)) if r == int(r) else sp.Float(r, 4)
+    for sym in expr.free_symbols:
+        pretty = _pretty_name(sym.name)
+        if pretty != sym.name:
+            subs[sym] = sp.Symbol(pretty)
+    text = str(expr.xreplace(subs)).replace("**", "^")
+    return text.replace("Min(", "min(").replace("Max(", "max(")
 
 
-def _short(text: str, limit: int) -> str:
-    return text if len(text) <= limit else text[:limit - 1] + "…"
+def _short_form(expr) -> str:
+    """The shortest of a few equivalent printings of ``expr`` (``1/(g/r1 + 1)`` or
+    ``r1/(g + r1)``)."""
+    forms = {_expr_text(expr)}
+    for f in (sp.together, sp.simplify):
+        try:
+            forms.add(_expr_text(f(expr)))
+        except (TypeError, ValueError, AttributeError):
+            pass
+    return min(forms, key=lambda t: (len(t), t))
 
 
 def _text_width(text: str, size: float = _FONT) -> float:
@@ -280,6 +323,14 @@ class _Layout:
         self.node_by_name = {n.name: n for n in flat.nodes}
         self.track: dict = {}               # connection -> inner track index (outside the rows)
         self.n_tracks: dict = {}            # element -> number of inner tracks
+        self.footnotes: list = []           # (what, full text) of labels too long for a block
+        self.symbols: dict = {}             # (scope, shown name) -> value of a symbol in a label
+        self.links: list = []
+        self.bus: dict = {}                 # junction drawn as a bus -> (element, level, side)
+        self._items_cache: dict = {}
+        self.levels: dict = {}              # element -> [(first item, last item, track level)]
+        self.entries: dict = {}             # element -> items whose ports face left
+        self.find_families()
 
     def subnet(self, item):
         """The innermost network a primitive (or an inner node) belongs to."""
@@ -295,45 +346,60 @@ class _Layout:
 
     # -- element order: columns and lanes ---------------------------------------------------------
     def order_elements(self):
-        """Columns along the drive chain from the first driving source (breadth first); elements
-        reached through the same node share a column and are stacked in lanes."""
+        """Columns along the chain of connections, lanes for parallel paths, terminals packed.
+
+        1. The root is the first source named in the connections (a driving one if no source
+           is named); its columns run left to right, breadth first: elements reached through the
+           same node share a column and are stacked in lanes (parallel paths).
+        2. *Terminals* (elements with a single connection, such as sources and grounds) are placed
+           afterwards next to the element they act on, in its lane: on the side of the port they
+           attach to, else the other side, else after a row of terminals already there, and only
+           when all of that is taken in the next lane.
+        """
+        flat = self.flat
         nodes_of = defaultdict(list)
         for n in self.top_nodes:
             for p in n.ports:
-                el = self.flat.element_of(p)
+                el = flat.element_of(p)
                 if n not in nodes_of[el]:
                     nodes_of[el].append(n)
+        self.nodes_of = nodes_of
         self.col, self.lane, self.parent_node, self.node_parent = {}, {}, {}, {}
-        used = defaultdict(set)             # column -> used lanes
+        self.node_gap_at = {}               # node -> gap index chosen when its terminal was placed
+        cells = {}
+        terminal = {el: len(nodes_of[el]) <= 1 for el in self.elements}
+        self.terminal = terminal
 
-        def place(el, c, want):
-            lane = want
-            while lane in used[c]:
+        def place(el, c, lane):
+            while (c, lane) in cells:
                 lane += 1
-            used[c].add(lane)
+            cells[(c, lane)] = el
             self.col[el], self.lane[el] = c, lane
 
-        n_ports = defaultdict(int)
-        for pp in self.flat.external_ports:
-            n_ports[pp.split(".", 1)[0]] += 1
-
         def chain_first(n):
-            """Nodes that lead on to multi-port elements before those that only attach grounds."""
-            new = {self.flat.element_of(p) for p in n.ports} - set(self.col)
-            return 0 if any(n_ports[e] > 1 for e in new) else 1
+            """Nodes that lead on to multi-port elements before those that only attach terminals."""
+            new = {flat.element_of(p) for p in n.ports} - set(self.col)
+            return 0 if any(not terminal[e] for e in new) else 1
+
+        waiting = []                        # terminals, placed once the chain stands
 
         def expand(el, nodes, queue):
             for n in sorted(nodes, key=chain_first):
                 if n.name in self.node_parent:
                     continue
-                els = list(dict.fromkeys(self.flat.element_of(p) for p in n.ports))
+                els = list(dict.fromkeys(flat.element_of(p) for p in n.ports))
                 parent = min((e for e in els if e in self.col), key=lambda e: (self.col[e], e != el))
                 self.node_parent[n.name] = parent          # the node sits after its leftmost element
                 for e in els:
-                    if e not in self.col:
-                        place(e, self.col[parent] + 1, self.lane[parent])
-                        self.parent_node[e] = n
-                        queue.append((e, nodes_of[e]))
+                    if e in self.col:
+                        continue
+                    if terminal[e]:
+                        if e not in [w[0] for w in waiting]:
+                            waiting.append((e, n))
+                        continue
+                    place(e, self.col[parent] + 1, self.lane[parent])
+                    self.parent_node[e] = n
+                    queue.append((e, nodes_of[e]))
 
         def visit(root):
             """Breadth first, so parallel paths run side by side; the root's other ports come
@@ -347,28 +413,210 @@ class _Layout:
                     queue.append((root, rest))
                     rest = []
 
-        def is_drive(el):
+        def is_source(el, driving):
             for path, prim in self.prims.items():
-                if self.flat.element_of(path) == el and prim.kind in ("Se", "Sf"):
-                    return sp.sympify(prim.params["value"]) != 0
+                if flat.element_of(path) == el and prim.kind in ("Se", "Sf"):
+                    return not driving or sp.sympify(prim.params["value"]).is_zero is not True
             return False
 
+        named = [flat.element_of(p) for n in self.top_nodes for p in n.ports]
+        pending = ([e for e in dict.fromkeys(named) if is_source(e, False)]
+                   + [e for e in self.elements if is_source(e, True)] + self.elements)
         start = 0
-        pending = [e for e in self.elements if is_drive(e)] + self.elements
         for root in pending:
             if root in self.col:
                 continue
+            waiting[:] = [w for w in waiting if w[0] not in self.col]
             place(root, start, 0)
             visit(root)
+            self.place_terminals(waiting, cells, place)
             start = max(self.col.values()) + 1
+        low = min(self.col.values())
+        for el in self.col:
+            self.col[el] -= low
+        self.node_gap_at = {k: g - low for k, g in self.node_gap_at.items()}
         self.n_cols = max(self.col.values()) + 1
         self.n_lanes = max(self.lane.values()) + 1
 
+    def place_terminals(self, waiting, cells, place):
+        """Put each terminal next to the element it acts on (see :meth:`order_elements`)."""
+        flat = self.flat
+        jobs = []
+        for el, n in waiting:
+            if el in self.col:
+                continue
+            placed = [e for e in dict.fromkeys(flat.element_of(p) for p in n.ports) if e in self.col]
+            if not placed:
+                continue
+            if len(placed) == 1:
+                host = placed[0]
+                side = self.port_side(host, next(p for p in n.ports if flat.element_of(p) == host))
+            else:                           # a node of several elements: beside its gap
+                host = min(placed, key=lambda e: self.col[e])
+                side = None
+            jobs.append((el, n, host, side))
+        # terminals at a node of several elements first (they have the least choice)
+        jobs.sort(key=lambda j: j[3] is not None)
+        for el, n, host, side in jobs:
+            c, lane = self.col[host], self.lane[host]
+            if side is None:                # gap after the host: the cell right of it or below
+                options = [(c + 1, lane + k) for k in range(1, 50)]
+                options = [(c + 1, lane)] + [x for pair in zip([(c, lane + k) for k in range(1, 50)], options)
+                                             for x in pair]
+            else:
+                near, far = (c - 1, c + 1) if side == "left" else (c + 1, c - 1)
+                options = [(near, lane), (far, lane)]
+                step = -1 if side == "left" else 1
+                k = near
+                while (k, lane) in cells and self.terminal.get(cells[(k, lane)]):
+                    k += step                # continue a row of terminals
+                below = [(near, lane + 1), (c, lane + 1), (far, lane + 1)]
+                if any(l2 == lane + 1 for _c2, l2 in cells):
+                    options += below         # that lane is drawn anyway
+                if k != near:
+                    options.append((k, lane))
+                options += below
+                for extra in range(2, 50):
+                    options += [(near, lane + extra), (c, lane + extra), (far, lane + extra)]
+            cell = next(x for x in options if x not in cells)
+            place(el, *cell)
+            self.parent_node[el] = n
+            members = {flat.element_of(p) for p in n.ports if flat.element_of(p) in self.col}
+            self.node_parent[n.name] = min(members, key=lambda e: (self.col[e], e != host))
+            if side is not None and cell[0] == c:       # straight below its host: the gap on its side
+                self.node_gap_at[n.name] = c - 1 if side == "left" else c
+
+    def port_side(self, el, port_path):
+        """``"left"`` if ``port_path`` of element ``el`` lies in the first half of its drawn
+        items, else ``"right"``."""
+        order = self.element_items(el)[0]
+        if len(order) <= 1:
+            return "left" if not any(self.col.get(e, 1e9) < self.col[el] for e in self.neighbours(el)) else "right"
+        item = self.item_of_port(el, port_path)
+        k = order.index(item) if item in order else len(order) - 1
+        return "left" if k < (len(order) - 1) / 2 else "right"
+
+    def neighbours(self, el):
+        return {self.flat.element_of(p) for n in self.nodes_of.get(el, []) for p in n.ports} - {el}
+
+    # -- repeated sub-elements ------------------------------------------------------------------------
+    def find_families(self):
+        """Sibling networks of the same type and structure (the discs of a stack): parent path ->
+        list of families, each a list of sibling paths in the order of the chain they form.
+        A family longer than :data:`COLLAPSE_ABOVE` with equal parameters is drawn collapsed:
+        its first :data:`DRAWN_HEAD` members, a placeholder, and its last member."""
+        flat = self.flat
+        prims_under = defaultdict(list)
+        for p in self.prims:
+            parts = p.split(".")
+            for k in range(1, len(parts)):
+                prims_under[".".join(parts[:k])].append(p)
+        values = {s.name: v for s, v in self.values.items()}
+
+        def signature(sub):
+            rel = tuple(sorted((p[len(sub) + 1:], self.prims[p].kind) for p in prims_under[sub]))
+            return flat.elements[sub], rel
+
+        def param_signature(sub):
+            return tuple(sorted((k[len(sub) + 1:], v) for k, v in values.items() if k.startswith(sub + ".")))
+
+        groups = defaultdict(list)
+        for sub in flat.elements:
+            if "." not in sub or not prims_under[sub]:
+                continue
+            groups[(sub.rsplit(".", 1)[0], signature(sub))].append(sub)
+        families, hidden, placeholders = defaultdict(list), {}, {}
+        self.alike = {}                     # sub-network -> its identical siblings (same inner order)
+        for (parent, _sig), subs in groups.items():
+            if len(subs) < 2:
+                continue
+            for sub in subs:
+                self.alike[sub] = subs
+            for subs in self.chains(subs):
+                if len(subs) < 2:
+                    continue
+                families[parent].append(subs)
+                same = len({param_signature(x) for x in subs}) == 1
+                if len(subs) > COLLAPSE_ABOVE and same:       # draw the head, a placeholder, the last
+                    gone = subs[DRAWN_HEAD:-1]
+                    ph = f"{parent}.{gone[0].rsplit('.', 1)[1]}…{gone[-1].rsplit('.', 1)[1]}"
+                    placeholders[ph] = (parent, subs, gone)
+                    for g in gone:
+                        for p in prims_under[g]:
+                            hidden[p] = ph
+        self.families, self.hidden, self.placeholders = families, hidden, placeholders
+
+    def chains(self, subs):
+        """Identical siblings split into the chains their direct connections form, each in chain
+        order from the end that holds the element's earliest external port (else the first name,
+        numbers by value)."""
+        def natural(name):
+            return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", name)]
+        subs = sorted(subs, key=natural)
+        member = {}
+        for sub in subs:
+            for p in self.prims:
+                if p.startswith(sub + "."):
+                    member[p] = sub
+        adj = defaultdict(set)
+        for n in self.flat.nodes:
+            touched = {member.get(q.rsplit(".", 1)[0]) for q in n.ports} - {None}
+            for x in touched:
+                adj[x] |= touched - {x}
+        ext = list(self.flat.external_ports.values())
+        rank = {}
+        for k, pp in enumerate(ext):
+            sub = member.get(pp.rsplit(".", 1)[0])
+            if sub is not None:
+                rank.setdefault(sub, k)
+        out, seen = [], set()
+        while len(seen) < len(subs):
+            rest = [x for x in subs if x not in seen]
+            ends = [x for x in rest if len(adj[x] - seen) <= 1]
+            start = min(ends or rest, key=lambda x: (rank.get(x, len(ext)), subs.index(x)))
+            order, todo = [], [start]
+            while todo:                       # along the chain, depth first
+                x = todo.pop()
+                if x in seen:
+                    continue
+                seen.add(x)
+                order.append(x)
+                todo += sorted(adj[x] - seen, key=lambda y: -subs.index(y))
+            out.append(order)
+        return out
+
     # -- items inside an element ------------------------------------------------------------------
+    def item_of_port(self, el, port_path):
+        """The drawn item that carries ``port_path`` of element ``el``."""
+        prim = port_path.rsplit(".", 1)[0]
+        if prim in self.hidden:
+            return self.hidden[prim]
+        _order, hang = self.element_items(el)
+        for host, hs in hang.items():
+            if prim in hs:
+                return host
+        return prim
+
     def element_items(self, el):
         """Ordered items of an element (primitives on the rows, inner nodes, middle blocks that
-        do not hang under a junction, unconnected-port terminals) and the hanging ones."""
-        prims = [p for p in self.prims if self.flat.element_of(p) == el]
+        do not hang under a junction, unconnected-port terminals, placeholders of collapsed
+        repeats) and the hanging ones.
+
+        The order follows the chain of connections from the ports facing left (the *entries*:
+        the port the element was reached through and ports joined to elements left of it) to the
+        others: at each branch a neighbour with a port that leads on comes last (so such ports end
+        up at the right edge), then the same physical domain comes first, then items without a
+        port, then the one farthest from the ports.  A nested network
+        is kept together where it is first met, identical siblings are drawn in the order of the
+        chain they form and with the same inner order."""
+        key = (el, tuple(sorted(self.col.items())),
+               tuple(sorted((k, v.name) for k, v in self.parent_node.items())))
+        cached = self._items_cache.get(key)
+        if cached is not None:
+            self.entries[el] = cached[2]
+            return cached[:2]
+        flat = self.flat
+        prims = [p for p in self.prims if flat.element_of(p) == el and p not in self.hidden]
         hang = defaultdict(list)           # host item -> middle primitives below it
         host_of = {}
         for p in prims:
@@ -383,71 +631,187 @@ class _Layout:
                 host_of[p] = n.name
             else:
                 q = others[0].rsplit(".", 1)[0]
-                if not self.is_middle(q):
+                if not self.is_middle(q) and q not in self.hidden:
                     host_of[p] = q
             if p in host_of:
                 hang[host_of[p]].append(p)
-        inner = [n for n in self.inner_nodes if self.flat.element_of(n.ports[0]) == el and len(n.ports) >= 3]
-        items = [p for p in prims if p not in host_of] + [n.name for n in inner]
+        inner = [n for n in self.inner_nodes if flat.element_of(n.ports[0]) == el and len(n.ports) >= 3
+                 and not all(q.rsplit(".", 1)[0] in self.hidden for q in n.ports)]
+        phs = [ph for ph in self.placeholders if flat.element_of(ph) == el]
+        items = [p for p in prims if p not in host_of] + [n.name for n in inner] + phs
         term_of = defaultdict(list)
         for n in self.terminations:
-            if self.flat.element_of(n.ports[0]) == el:
-                term_of[n.ports[0].rsplit(".", 1)[0]].append(n.name)
-        # adjacency between items through inner nodes
+            prim = n.ports[0].rsplit(".", 1)[0]
+            if flat.element_of(prim) == el and prim not in self.hidden:
+                term_of[prim].append(n.name)
         item_of = {p: host_of.get(p, p) for p in prims}
+        item_of.update(self.hidden)
+        inner_names = {n.name for n in inner}
         adj = defaultdict(list)
         for n in self.inner_nodes:
-            if self.flat.element_of(n.ports[0]) != el:
+            if flat.element_of(n.ports[0]) != el:
                 continue
-            its = [item_of[q.rsplit(".", 1)[0]] for q in n.ports]
-            if len(n.ports) >= 3:
-                its = its + [n.name]
-                for a in its[:-1]:
-                    if a != n.name:
-                        adj[a].append(n.name)
-                        adj[n.name].append(a)
-            else:
+            its = list(dict.fromkeys(item_of[q.rsplit(".", 1)[0]] for q in n.ports))
+            if n.name in inner_names:
+                its = [x for x in its if x != n.name]
+                for a in its:
+                    adj[a].append(n.name)
+                    adj[n.name].append(a)
+            elif len(its) == 2:
                 a, b = its
-                if a != b:
-                    adj[a].append(b)
-                    adj[b].append(a)
-        # entry: the item at the port through which the element was reached
-        entry = items[0] if items else None
-        pn = self.parent_node.get(el)
-        if pn is not None:
-            p = next(q for q in pn.ports if self.flat.element_of(q) == el)
-            entry = item_of[p.rsplit(".", 1)[0]]
-        order = []
-
-        def dfs(it):
-            if it in order:
-                return
-            order.append(it)
-            for t in term_of.get(it, []):
-                order.append(t)
-            for h in hang.get(it, []):
-                order.extend(t for t in term_of.get(h, []) if t not in order)
-            # within the same sub-network first, along the row primitives before cross-couplings
-            here = self.subnet(it)
-            for nb in sorted(adj[it], key=lambda x: (self.subnet(x) != here,
-                                                     x in self.prims and self.is_middle(x))):
-                dfs(nb)
-
-        if entry is not None:
-            dfs(entry)
-        for it in items:
-            dfs(it)
-        for ts in term_of.values():
-            order.extend(t for t in ts if t not in order)
-        first_seen = {}                     # keep each nested network's items together
+                adj[a].append(b)
+                adj[b].append(a)
+        # entries (ports facing left) and exits
+        entries, exits = [], []
+        my_col = self.col.get(el, 0)
+        for k, pp in flat.external_ports.items():
+            if k.split(".", 1)[0] != el or pp.rsplit(".", 1)[0] not in item_of:
+                continue
+            it = item_of[pp.rsplit(".", 1)[0]]
+            n = self.node_of.get(pp)
+            left = n is not None and (n is self.parent_node.get(el) or any(
+                self.col.get(flat.element_of(q), my_col) < my_col for q in n.ports))
+            (entries if left else exits).append(it)
+        self.entries[el] = set(entries)
+        order = self.walk(items, adj, entries, [it for it in exits if it not in entries])
+        order = self.group_nested(el, order, adj)
+        out = []
         for it in order:
-            first_seen.setdefault(self.subnet(it), len(first_seen))
-        order.sort(key=lambda it: first_seen[self.subnet(it)])
-        return order, hang
+            out.append(it)
+            out += term_of.get(it, [])
+            for h in hang.get(it, []):
+                out += [t for t in term_of.get(h, []) if t not in out]
+        for ts in term_of.values():
+            out += [t for t in ts if t not in out]
+        self._items_cache[key] = (out, hang, self.entries[el])
+        return out, hang
+
+    def walk(self, items, adj, entries, exits):
+        """Depth-first order of ``items`` (joined by ``adj``) from ``entries``; at each branch a
+        neighbour holding one of the ``exits`` that leads on comes last, the same physical
+        domain first, then items that are no exit, then the one farthest from the exits."""
+        allowed = set(items)
+        dist = {it: 0 for it in exits if it in allowed}
+        frontier = list(dist)
+        while frontier:
+            nxt = []
+            for it in frontier:
+                for nb in adj[it]:
+                    if nb not in dist and nb in allowed:
+                        dist[nb] = dist[it] + 1
+                        nxt.append(nb)
+            frontier = nxt
+        rank = {it: k for k, it in enumerate(items)}
+        order, seen = [], set()
+
+        def domains(it):
+            if it in self.prims:
+                return {d.name for d in self.prims[it].ports.values()}
+            if it in self.node_by_name:
+                return {self.node_by_name[it].domain.name}
+            return set()
+
+        def leads_on(nb, x):               # a neighbour with a port that does not end the branch
+            return dist.get(nb) == 0 and any(m not in seen and m != x for m in adj[nb])
+
+        for start in list(dict.fromkeys(entries)) + list(items):
+            stack = [start] if start in allowed else []
+            while stack:
+                x = stack.pop()
+                if x in seen:
+                    continue
+                seen.add(x)
+                order.append(x)
+                here, dom = self.subnet(x), domains(x)
+                nbs = sorted((nb for nb in adj[x] if nb not in seen and nb in allowed),
+                             key=lambda nb: (leads_on(nb, x), not domains(nb) <= dom, dist.get(nb) == 0,
+                                             -dist.get(nb, 0), self.subnet(nb) != here,
+                                             nb in self.prims and self.is_middle(nb), rank.get(nb, 0)))
+                stack += nbs[::-1]
+        return order
+
+    def chain_template(self, group, members, adj):
+        """Inner order shared by identical siblings, as (member, items): for a chain of them, a
+        member walked from the item joined to its predecessor to the one joined to its successor
+        (the second member if drawn, else the first); otherwise the order they were met in."""
+        def drawn(m):                       # the items standing for member m (a placeholder if hidden)
+            got = members.get(m)
+            if got:
+                return got
+            return [ph for ph, (_p, _s, gone) in self.placeholders.items() if m in gone]
+
+        if len(group) < 2:
+            return group[0], members.get(group[0], [])
+        k = 1 if len(group) >= 3 and members.get(group[1]) else 0
+        sub = group[k]
+        its = members.get(sub, [])
+        before = set(drawn(group[k - 1])) if k else set()
+        after = set(drawn(group[k + 1]))
+        entry = [x for x in its if any(nb in before for nb in adj[x])]
+        exit_ = [x for x in its if any(nb in after for nb in adj[x])]
+        return sub, self.walk(its, adj, entry or its[:1], exit_)
+
+    def group_nested(self, el, order, adj):
+        """Keep the items of each nested network together where the first of them is met; the
+        members of a family of identical siblings follow each other in chain order, each with
+        the inner order of the first, and a collapsed run is replaced by its placeholder."""
+        def top(it):                        # the network directly inside ``el`` an item belongs to
+            if it in self.placeholders:
+                return self.placeholders[it][0] if self.placeholders[it][0] != el else it
+            sub = self.subnet(it)
+            if sub == el or not sub.startswith(el + "."):
+                return None
+            return ".".join(sub.split(".")[:2])
+
+        family_of, ph_of = {}, {}
+        for fam in self.families.get(el, []):
+            for sub in fam:
+                family_of[sub] = fam
+        for ph, (parent, subs, gone) in self.placeholders.items():
+            if parent == el:
+                for sub in subs:
+                    ph_of[sub] = ph
+        members = defaultdict(list)
+        for it in order:
+            members[top(it) or it].append(it)
+        template = {}
+
+        def rel(it, sub):
+            return it.replace(sub + ".", "§.")
+
+        out, done = [], set()
+        for it in order:
+            t = top(it)
+            if t is None:
+                out.append(it)
+                continue
+            if t in done:
+                continue
+            group = family_of.get(t, [t])
+            for sub in group:
+                if sub in done:
+                    continue
+                done.add(sub)
+                ph = ph_of.get(sub)
+                if ph is not None and sub in self.placeholders[ph][2]:
+                    if ph not in done:
+                        done.add(ph)
+                        out.append(ph)
+                    continue
+                its = members.get(sub, [])
+                alike = tuple(self.alike.get(sub, [sub]))
+                if len(alike) > 1:
+                    if alike not in template:
+                        m, its_m = self.chain_template(group, members, adj)
+                        template[alike] = [rel(x, m) for x in its_m]
+                    pos = {r: k for k, r in enumerate(template[alike])}
+                    its = sorted(its, key=lambda x: pos.get(rel(x, sub), len(pos)))
+                out += its
+        return out
 
     # -- blocks -------------------------------------------------------------------------------------
     def _block(self, bid, kind, label, row, owner, element, note="", identity=False, w=None, h=None):
-        default = {"sum": (0.42, 0.38), "dot": (0.0, 0.0), "ratio": (0.62, 0.38), "gyrator": (0.62, 0.38)}
+        default = {"sum": (0.42, 0.38), "dot": (0.0, 0.0), "ratio": (0.62, 0.38), "gyrator": (0.95, 0.38)}
         dw, dh = default.get(kind, (0.98, 0.58))
         text_w = 0.0 if kind == "dot" else max(_text_width(label, 9), _text_width(note, 7.5)) + 0.22
         b = Block(bid, kind, label, row, owner, element, note, w=max(w or dw, text_w), h=h or dh, identity=identity)
@@ -476,15 +840,56 @@ class _Layout:
         if slope.has(x) or slope == 0:
             return None
         coef = 1 / slope if state == "p" else slope
-        return self._param_text(coef, name)
+        return self._param_text(coef, name, path)
 
-    def _param_text(self, coef, name):
+    def _param_text(self, coef, name, path=""):
         coef = sp.sympify(coef)
         if coef.free_symbols and coef.free_symbols <= set(self.values):
             value = float(coef.xreplace({s: sp.Float(self.values[s]) for s in coef.free_symbols}))
-            label = coef.name.rsplit(".", 1)[-1] if isinstance(coef, sp.Symbol) else name
-            return f"{label} = {_num(value)}"
-        return f"{name} = {_expr_text(coef, 12)}"
+            label = _pretty_name(coef.name.rsplit(".", 1)[-1]) if isinstance(coef, sp.Symbol) else name
+            return self.fit(f"{label} = {_num(value)}", _NOTE_CHARS, path)
+        return self.fit(f"{name} = {_expr_text(self.symbolic(coef))}", _NOTE_CHARS, path)
+
+    def fit(self, text, limit, what, prefix=""):
+        """``prefix + text`` if it fits a block (``limit`` characters), else ``prefix`` and a
+        footnote mark ``[n]``; the full text becomes footnote n.  Labels are never cut."""
+        if len(prefix + text) <= limit:
+            return prefix + text
+        entry = (what, prefix + text)
+        if entry not in self.footnotes:
+            self.footnotes.append(entry)
+        return f"{prefix}[{self.footnotes.index(entry) + 1}]"
+
+    def symbolic(self, expr, path=""):
+        """``expr`` with its parameters by their short names (the part after the last dot, the
+        scope is the frame the block sits in); every name shown is remembered with its value for
+        the symbol footnote.  A name local to the primitive ``path`` is looked up in its scopes;
+        the primitive's own parameters (not named by any network) are written as numbers."""
+        expr = sp.sympify(expr)
+        scoped = {}
+        for sym in expr.free_symbols:
+            scope = path
+            while scope and sym not in self.values:
+                scope = scope.rpartition(".")[0]
+                full = sp.Symbol(f"{scope}.{sym.name}" if scope else sym.name)
+                if full in self.values:
+                    scoped[sym] = full
+                    break
+        expr = expr.xreplace(scoped)
+        own = {sym: sp.Float(self.values[sym]) for sym in expr.free_symbols
+               if sym in self.values and path and sym.name.rpartition(".")[0] == path}
+        expr = expr.xreplace(own)
+        params = [sym for sym in expr.free_symbols if sym in self.values]
+        shorts = defaultdict(list)
+        for sym in params:
+            shorts[sym.name.rpartition(".")[2]].append(sym)
+        subs = {}
+        for short, syms in shorts.items():
+            for sym in syms:
+                name = short if len(syms) == 1 else sym.name
+                subs[sym] = sp.Symbol(name)
+                self.symbols[(sym.name.rpartition(".")[0] if len(syms) == 1 else "", name)] = self.values[sym]
+        return expr.xreplace(subs)
 
     def middle_block(self, path):
         prim = self.prims[path]
@@ -508,13 +913,25 @@ class _Layout:
             note = self._coefficient_note(path, "r") or "e = law(f)"
             kind = "resistance"
         elif k in ("Se", "Sf"):
-            label, note, kind = k, ("e" if k == "Se" else "f") + " = " + _expr_text(pr["value"]), "source"
+            var_ = "e" if k == "Se" else "f"
+            label, kind = k, "source"
+            note = self.fit(_expr_text(pr["value"]), _NOTE_CHARS, path, f"{var_} = ")
         elif k == "Tap":
             label, note, kind = "Tap  ∫", "", "tap"
         else:                               # a kind an element library defines
-            label, note, kind = k, _short(prim.doc.split(":")[0] if prim.doc else "", 24), "other"
+            label, kind = k, "other"
+            note = self.fit(prim.doc.split(":")[0] if prim.doc else "", _NOTE_CHARS, path)
         b = self._block(f"{path}:x", kind, label, "x", path, el, note)
         b.derivative = deriv
+        return b
+
+    def placeholder_block(self, ph):
+        """The block that stands for a collapsed run of identical sub-elements."""
+        parent, subs, gone = self.placeholders[ph]
+        typ = self.flat.elements[subs[0]]
+        short = [g.rsplit(".", 1)[1] for g in gone]
+        b = self._block(f"{ph}:x", "repeat", f"{len(gone)} × {typ}", "x", ph, self.flat.element_of(ph),
+                        f"{short[0]} … {short[-1]}: as drawn", h=2 * _DY + 0.3)
         return b
 
     def row_blocks(self, path):
@@ -537,11 +954,19 @@ class _Layout:
             ea, eb = self.out.get(f"{path}.a.e"), self.out.get(f"{path}.b.e")
             flow = 1 / base if fb and not fa else base
             effort = -1 / base if ea and not eb else -base
-            self._block(f"{path}:f", "ratio", _expr_text(flow, 9), "f", path, el)
-            self._block(f"{path}:e", "ratio", _expr_text(effort, 9), "e", path, el)
+            flow_label = self.fit(_short_form(flow), _RATIO_CHARS, f"{path}, flows")
+            if moving:                      # a modulated transformer: its ratio in a footnote
+                entry = (path, f"{base} = {_short_form(ratio)}")
+                if entry not in self.footnotes:
+                    self.footnotes.append(entry)
+                flow_label += f" [{self.footnotes.index(entry) + 1}]"
+            self._block(f"{path}:f", "ratio", flow_label, "f", path, el)
+            self._block(f"{path}:e", "ratio", self.fit(_short_form(effort), _RATIO_CHARS, f"{path}, efforts"), "e",
+                        path, el)
             return
         if k == "GY":
-            r = _expr_text(prim.params["r"], 7)
+            r = self.fit(_expr_text(self.symbolic(prim.params["r"], path)), _RATIO_CHARS - 3,
+                         f"{path}, gyrator ratio")
             self._block(f"{path}:f", "gyrator", f"GY {r}", "f", path, el)
             self._block(f"{path}:e", "gyrator", f"GY {r}", "e", path, el)
             return
@@ -556,15 +981,10 @@ class _Layout:
         for eq in self.flat.equations:
             if eq.owner == path and eq.expr.has(fa) and eq.expr.has(fb):
                 k = -sp.diff(eq.expr, fb) / sp.diff(eq.expr, fa)
-                moving = sorted({v.name.rsplit(".", 1)[-1] for v in k.free_symbols
-                                 if v not in self.values and v != T})
-                subs = {}
-                for sym in k.free_symbols:
-                    if sym in self.values and "." in sym.name:
-                        subs[sym] = sp.Float(self.values[sym])     # element-local constants
-                    elif sym in self.values:
-                        subs[sym] = sp.Symbol(sym.name)            # scene parameters by name
-                return sp.simplify(k.xreplace(subs)), moving
+                states = {v: sp.Symbol(v.name.rsplit(".", 1)[-1]) for v in k.free_symbols
+                          if v not in self.values and v != T}
+                moving = sorted(s.name for s in states.values())
+                return sp.simplify(self.symbolic(k, path).xreplace(states)), moving
         return sp.Symbol("k"), []
 
     def node_blocks(self, node, element):
@@ -583,7 +1003,10 @@ class _Layout:
                            f"{free} = 0 at {pp.split('.', 1)[-1]}")
 
     def block_id(self, path, row):
-        """Block of primitive ``path`` that carries its variables of ``row``."""
+        """Block of primitive ``path`` that carries its variables of ``row`` (for a primitive of
+        a collapsed sub-element: the placeholder)."""
+        if path in self.hidden:
+            return f"{self.hidden[path]}:x"
         return f"{path}:x" if self.is_middle(path) else f"{path}:{row}"
 
     def is_middle(self, path):
@@ -598,9 +1021,14 @@ class _Layout:
         self.items, self.widths = {}, {}
         for el in self.elements:
             order, hang = self.element_items(el)
+            buses = self.find_buses(el, order, hang)
+            order = [it for it in order if it not in buses]
             xs, x = {}, 0.25
             for it in order:
-                if it in self.prims and self.is_middle(it):
+                if it in self.placeholders:
+                    b = self.placeholder_block(it)
+                    w = max(_SUB, b.w + 0.4)
+                elif it in self.prims and self.is_middle(it):
                     b = self.middle_block(it)
                     w = max(_SUB, b.w + 0.3)
                 elif it in self.prims:
@@ -617,43 +1045,114 @@ class _Layout:
                     w = max(_SUB, sum(max(_HANG, hb.w + 0.2) for hb in hs))
                 xs[it] = (x, w)
                 x += w
+            for j in buses:
+                if j in self.prims:
+                    self.row_blocks(j)
+                else:
+                    self.node_blocks(self.node_by_name[j], el)
+                for row in ("f", "e"):
+                    self.blocks[f"{j}:{row}"].bus = True
             label = self.group_label(el)
             width = max(x + 0.25, _text_width(label, 9) + 0.4)
             self.items[el] = (order, hang, xs)
             self.widths[el] = width
-            self.inner_tracks(el, order)
+            self.inner_tracks(el, order, buses)
         self.col_w = [max([self.widths[e] for e in self.elements if self.col[e] == c] or [1.0])
                       for c in range(self.n_cols)]
         self.plan_wires()
         self.pad = {el: 0.13 * max(0, n - 1) for el, n in self.n_tracks.items()}
-        extra = max(self.pad.values(), default=0.0)
+        self.sub_strip = {el: 0.22 if any(self.subnet(it) != el for it in self.items[el][0]
+                                           if it in self.prims) else 0.0 for el in self.elements}
+        extra = max((self.pad[el] + self.sub_strip[el] for el in self.elements), default=0.0)
         self.lane_h = _LANE + 2 * extra
         self.top_base = 0.8 + extra + 0.55
         self.place()
         self.route()
 
-    def inner_tracks(self, el, order):
-        """Connections inside an element whose ends are not neighbours on the rows run over a
-        track outside the rows (above the flows, below the efforts); number them."""
-        pos = {it: k for k, it in enumerate(order)}
-        rows_at = [pos[it] for it in order if f"{it}:f" in self.blocks]
-        count = 0
+    def connections(self, el):
+        """Connections inside element ``el`` as (key, item, item): a two-port node is one
+        connection, a node of three or more ports one connection per port (to the node's item).
+        Primitives of a collapsed run stand for their placeholder."""
+        out = []
         for n in self.inner_nodes:
             if self.flat.element_of(n.ports[0]) != el:
                 continue
-            prims = [q.rsplit(".", 1)[0] for q in n.ports]
+            prims = [self.hidden.get(q.rsplit(".", 1)[0], q.rsplit(".", 1)[0]) for q in n.ports]
             if len(n.ports) == 2:
-                pairs = [(n.name, prims[0], prims[1])]
+                out.append((n.name, prims[0], prims[1]))
             else:
-                pairs = [((n.name, q), n.name, pr) for q, pr in zip(n.ports, prims)]
-            for key, a, b in pairs:
-                if a not in pos or b not in pos:
-                    continue            # hanging under a junction: a short vertical wire
-                lo, hi = sorted((pos[a], pos[b]))
-                if any(lo < k < hi for k in rows_at):
-                    self.track[key] = count
-                    count += 1
-        self.n_tracks[el] = count
+                out += [((n.name, q), n.name, pr) for q, pr in zip(n.ports, prims)]
+        return out
+
+    def find_buses(self, el, order, hang):
+        """Junctions (and nodes) on the rows joined to three or more items that are not their
+        neighbours: drawn as a bus outside the rows instead of one track per connection."""
+        pos = {it: k for k, it in enumerate(order)}
+        rows_at = [pos[it] for it in order if it not in self.placeholders
+                   and (it in self.node_by_name or (it in self.prims and not self.is_middle(it)))]
+        far = defaultdict(set)
+        for _key, a, b in self.connections(el):
+            if a not in pos or b not in pos or a == b:
+                continue
+            lo, hi = sorted((pos[a], pos[b]))
+            if any(lo < k < hi for k in rows_at):
+                far[a].add(b)
+                far[b].add(a)
+        buses = []
+        for it, others in far.items():
+            junction = (it in self.prims and self.prims[it].kind.startswith("junction_")) or \
+                (it in self.node_by_name and self.node_by_name[it].origin != "termination")
+            if junction and len(others) >= 3 and not hang.get(it) and it not in self.placeholders:
+                buses.append(it)
+        return buses
+
+    def inner_tracks(self, el, order, buses):
+        """Connections inside an element whose ends are not neighbours on the rows run over a
+        track outside the rows (above the flows, below the efforts).  Shorter connections get the
+        inner tracks and connections that do not overlap share one, so nested spans never
+        cross; a bus gets one track for all its connections."""
+        pos = {it: k for k, it in enumerate(order)}
+        rows_at = [pos[it] for it in order if f"{it}:f" in self.blocks]
+        spans, seen = [], {}
+        for key, a, b in self.connections(el):
+            if a in buses or b in buses:
+                continue
+            if a not in pos or b not in pos or a == b:
+                continue            # hanging under a junction: a short vertical wire
+            lo, hi = sorted((pos[a], pos[b]))
+            if not any(lo < k < hi for k in rows_at):
+                continue
+            pair = (lo, hi)
+            if pair in seen and (a in self.placeholders or b in self.placeholders):
+                self.track[key] = seen[pair]          # the same wire: one drawn for the run
+                continue
+            seen[pair] = key
+            spans.append((lo, hi, key))
+        ends = {}
+        for j in buses:
+            its = [b if a == j else a for _k, a, b in self.connections(el) if j in (a, b)]
+            idx = [pos[i] for i in its if i in pos]
+            side = None
+            for k, pp in self.flat.external_ports.items():
+                if pp.rsplit(".", 1)[0] == j:
+                    side = "left" if j in self.entries.get(el, ()) else "right"
+            lo, hi = min(idx), max(idx)
+            lo, hi = (-1 if side == "left" else lo), (len(order) if side == "right" else hi)
+            ends[j] = side
+            spans.append((lo, hi, ("bus", j)))
+        self.levels[el] = []
+        for lo, hi, key in sorted(spans, key=lambda s: (s[1] - s[0], s[0])):
+            level = 1 + max((lv for l2, h2, lv in self.levels[el] if lo <= h2 and l2 <= hi), default=-1)
+            if isinstance(key, tuple) and key[0] == "bus":    # a bus takes three tracks: room for its Σ
+                self.levels[el] += [(lo, hi, level), (lo, hi, level + 1), (lo, hi, level + 2)]
+                self.bus[key[1]] = (el, level + 1, ends[key[1]])
+            else:
+                self.levels[el].append((lo, hi, level))
+                self.track[key] = level
+        for key, alias in list(self.track.items()):
+            if not isinstance(alias, int):
+                self.track[key] = self.track[alias]
+        self.n_tracks[el] = 1 + max((lv for _l, _h, lv in self.levels[el]), default=-1)
 
     def blocked_track(self, el, prim, right):
         """A track for a leg whose port block has other row blocks between it and the element's
@@ -667,8 +1166,12 @@ class _Layout:
             return None
         key = ("leg", prim, right)
         if key not in self.track:
-            self.track[key] = self.n_tracks[el]
-            self.n_tracks[el] += 1
+            pos = order.index(prim)
+            lo, hi = (pos, len(order)) if right else (-1, pos)
+            level = 1 + max((lv for l2, h2, lv in self.levels[el] if lo <= h2 and l2 <= hi), default=-1)
+            self.levels[el].append((lo, hi, level))
+            self.track[key] = level
+            self.n_tracks[el] = max(self.n_tracks[el], level + 1)
         return self.track[key]
 
     def group_label(self, el):
@@ -688,7 +1191,7 @@ class _Layout:
         self.node_gap, self.legs = {}, []
         for n in self.top_nodes:
             parent = self.node_parent.get(n.name, self.flat.element_of(n.ports[0]))
-            g = self.col[parent]
+            g = self.node_gap_at.get(n.name, self.col[parent])
             self.node_gap[n.name] = (g, self.lane[parent])
         for n in self.top_nodes:
             g, lane = self.node_gap[n.name]
@@ -733,17 +1236,20 @@ class _Layout:
             x0, lane = self.col_x[self.col[el]], self.lane[el]
             yf, ye = self.y_row(lane, "f"), self.y_row(lane, "e")
             pad = self.pad[el]
-            self.groups.append(Group(el, self.group_label(el), x0, ye - 0.5 - pad, x0 + self.widths[el], yf + 0.8 + pad,
-                                     el in self.red))
+            self.groups.append(Group(el, self.group_label(el), x0, ye - 0.5 - pad - self.sub_strip[el],
+                                     x0 + self.widths[el], yf + 0.8 + pad, el in self.red))
+            # sub-frames reach below the element's tracks: their labels sit in a strip no wire uses
+            n_tr = self.n_tracks.get(el, 0)
+            sub_y0 = ye - (0.28 + 0.13 * (n_tr - 1) + 0.06 if n_tr else 0.22) - 0.24
             run = []                       # consecutive items of one nested network: a sub-frame
             for it in order + [None]:
-                net = self.subnet(it) if it is not None else None
+                net = self.subnet(it) if it is not None and it not in self.placeholders else None
                 if run and net != run[0][0]:
                     sub = run[0][0]
-                    if sub != el and sub.startswith(el + "."):
+                    if sub is not None and sub != el and sub.startswith(el + "."):
                         left, right = xs[run[0][1]][0], sum(xs[run[-1][1]])
                         self.subgroups.append(Group(sub, f"{sub[len(el) + 1:]} ({self.flat.elements[sub]})",
-                                                    x0 + left + 0.05, ye - 0.42, x0 + right - 0.05, yf + 0.42,
+                                                    x0 + left + 0.05, sub_y0, x0 + right - 0.05, yf + 0.42,
                                                     el in self.red))
                     run = []
                 if it is not None:
@@ -767,29 +1273,52 @@ class _Layout:
                     for row in ("f", "e"):
                         b = self.blocks[f"{it}:{row}"]
                         b.w = span if b.kind == "dot" else max(b.w, span + 0.42)
+            for j, (bel, level, side) in self.bus.items():
+                if bel == el:
+                    self.place_bus(j, el, level, side, x0, yf, ye)
         # nodes joining elements; where several share a gap in one lane, the multi-port ones move
         # off the row line (between the rows) so straight wires through the gap miss their blocks
         self.node_pt = {}
         sharing = defaultdict(list)
         for n in self.top_nodes:
             sharing[self.node_gap[n.name]].append(n)
-        shift = {}
-        for group in sharing.values():
+        shift, self.hop = {}, set()
+        for (_g, lane), group in sharing.items():
             multi = [n for n in group if len(n.ports) >= 3]
-            movers = multi if len(multi) < len(group) else multi[1:]
-            for j, n in enumerate(movers, 1):
-                shift[n.name] = 0.4 * j
+            for j, n in enumerate(multi[1:], 1):    # a second node on the row would sit in the way
+                shift[n.name] = 0.7 * j
+            if multi:                               # straight wires hop over the node's blocks
+                self.hop |= {n.name for n in group if len(n.ports) == 2}
         for n in self.top_nodes:
             g, lane = self.node_gap[n.name]
             xf = self.gap_x.get(("node", n.name, "f"), self.gap_x.get(("node", n.name, "fe")))
             xe = self.gap_x.get(("node", n.name, "e"), xf)
-            dy = shift.get(n.name, 0.0)
-            self.node_pt[n.name] = {"f": (xf, self.y_row(lane, "f") - dy), "e": (xe, self.y_row(lane, "e") + dy)}
+            dy = shift.get(n.name, 0.34 if n.name in self.hop else 0.0)    # outward: above flows, below efforts
+            self.node_pt[n.name] = {"f": (xf, self.y_row(lane, "f") + dy), "e": (xe, self.y_row(lane, "e") - dy)}
             if len(n.ports) >= 3:
                 self.node_blocks(n, "")
                 for row in ("f", "e"):
                     b = self.blocks[f"{n.name}:{row}"]
                     b.x, b.y = self.node_pt[n.name][row]
+
+    def place_bus(self, j, el, level, side, x0, yf, ye):
+        """Bars of a bus junction: over the flows and under the efforts at its track level, from
+        its first to its last connected item and, for a port of the element, on to that edge."""
+        xs = []
+        for _key, a, b in self.connections(el):
+            if j in (a, b):
+                other = b if a == j else a
+                xs.append(self.blocks[self.block_id(other, "f") if other in self.prims else f"{other}:x"
+                                      if other in self.placeholders else f"{other}:f"].x)
+        lo, hi = min(xs) - 0.3, max(xs) + 0.3
+        if side == "left":
+            lo = x0 + 0.12
+        elif side == "right":
+            hi = x0 + self.widths[el] - 0.12
+        off = 0.28 + 0.13 * level
+        for row, y in (("f", yf + off), ("e", ye - off)):
+            b = self.blocks[f"{j}:{row}"]
+            b.x, b.y, b.w, b.h = (lo + hi) / 2, y, hi - lo, 0.0 if b.kind == "dot" else 0.1
 
     # -- pins and routes ------------------------------------------------------------------------------
     def pin(self, bid, toward, row):
@@ -840,12 +1369,19 @@ class _Layout:
         top_y = self.top_base
         bottom_y = self.y_row(self.n_lanes - 1, "e") - 0.85 - self.pad_max()
         self.assign_slots()
+        self.assign_taps()
+        multi = {}                          # (own, other, row) -> arrow standing for a collapsed run
+        top_pairs = defaultdict(list)
         for pp in self.flat.port_domains:
             prim = pp.rsplit(".", 1)[0]
             n = self.node_of[pp]
             for row in ("f", "e"):
                 v = f"{pp}.{row}"
                 own = self.block_id(prim, row)
+                if prim in self.hidden:     # inside a collapsed run: no wire of its own
+                    self.arrows.append(Arrow(v, row, own, own, v in self.out or pp in self.out, EFFORT,
+                                             head=False, drawn=False, hidden=True))
+                    continue
                 if n.origin == "termination":
                     other = f"{n.name}:x"
                 elif n.name in self.top_set and len(n.ports) >= 3:
@@ -862,34 +1398,154 @@ class _Layout:
                     arrow.points = pts[::-1] if inside or inside is None else pts
                     # a two-port connection is one wire: the head sits on the receiving leg only
                     arrow.head = len(n.ports) >= 3 or not inside
+                    if len(n.ports) == 2:
+                        top_pairs[(n.name, row)].append(arrow)
                 else:
                     key = n.name if len(n.ports) == 2 else (n.name, pp)
-                    if key in self.track:
-                        pts = self.track_route(own, other, row, self.track[key])
+                    if self.blocks[own].bus or self.blocks[other].bus:
+                        pts = self.bus_route(own, other, row, key)
+                    elif key in self.track:
+                        pts = self.track_route(own, other, row, self.track[key], key)
                     else:
                         a = self.pin(own, self.centre(other), row)
                         b = self.pin(other, self.centre(own), row)
                         pts = self.path_between(a, b, self.y_row(self.lane_of_block(own), row))
                     arrow.points = pts if src == own else pts[::-1]
-                    arrow.drawn = n.origin == "termination" or len(n.ports) != 2 or pp == n.ports[0]
+                    visible = [p for p in n.ports if p.rsplit(".", 1)[0] not in self.hidden]
+                    arrow.drawn = n.origin == "termination" or len(n.ports) != 2 or pp == visible[0]
+                    if other.endswith(":x") and other[:-2] in self.placeholders and arrow.drawn:
+                        first = multi.get((own, other, row))
+                        if first is None:
+                            multi[(own, other, row)] = arrow
+                        else:
+                            first.multiplicity += 1
+                            arrow.drawn = False
                 if not arrow.determined:
                     arrow.head = False
                 self.arrows.append(arrow)
+        for pair in top_pairs.values():
+            if len(pair) == 2:
+                _despike(*pair)
         self.top_y = top_y + _CORRIDOR * corridor["top"]
         self.bottom_y = bottom_y - _CORRIDOR * corridor["bottom"]
+
+    def footnote_lines(self) -> list:
+        """Footnotes below the legend: collapsed repeats, labels too long for their block, and the
+        values of the symbols written in ratio blocks."""
+        lines = []
+        for ph, (parent, subs, gone) in self.placeholders.items():
+            short = [x.rsplit(".", 1)[1] for x in subs]
+            drawn = [x for x in short if f"{parent}.{x}" not in gone]
+            typ = self.flat.elements[subs[0]]
+            lines.append(f"{parent}: {len(subs)} × {typ}, drawn: {len(drawn)} ({', '.join(drawn)}); "
+                         f"{short[DRAWN_HEAD]} … {short[-2]} are identical to those drawn, their "
+                         f"{len(gone)} parallel wires drawn once and marked ×{len(gone)}")
+        for k, (what, text) in enumerate(self.footnotes, 1):
+            lines.append(f"[{k}] {what}: {text}")
+        if self.symbols:
+            lines.append("symbols in the blocks: " + _group_symbols(self.symbols))
+        return lines
+
+
+    def gyrator_links(self) -> None:
+        """A gyrator ties the effort of each side to the flow of the other: two crossing links
+        between its flow and effort blocks, pointing the way the analyser computes them."""
+        arrows = {a.variable: a for a in self.arrows}
+        for p, prim in self.prims.items():
+            if prim.kind != "GY" or p in self.hidden:
+                continue
+            bf, be = self.blocks[f"{p}:f"], self.blocks[f"{p}:e"]
+            side = {}
+            for port in ("a", "b"):
+                a = arrows[f"{p}.{port}.f"]
+                if not a.points:
+                    side[port] = -1 if port == "a" else 1
+                    continue
+                end = a.points[0] if a.source == bf.id else a.points[-1]
+                side[port] = -1 if end[0] < bf.x else 1
+            for port, other in (("a", "b"), ("b", "a")):
+                computed_f = self.out.get(f"{p}.{port}.f")
+                top = (bf.x + side[port] * bf.w * 0.35, bf.y - bf.h / 2)
+                bottom = (be.x + side[other] * be.w * 0.35, be.y + be.h / 2)
+                if computed_f is None:
+                    self.links.append(([top, bottom], CONFLICT, False))
+                else:           # flow received -> the other side's effort computed, else the reverse
+                    self.links.append(([top, bottom] if not computed_f else [bottom, top], "#555555", True))
+
+    def assign_taps(self):
+        """Wires that leave a row block vertically (to a track or a bus) get their own x on it,
+        in the order of where they go, so they neither overlap nor cross near the block; a dot
+        with several such wires becomes a short bar."""
+        legs = defaultdict(list)            # (block, side) -> [(order key, tap key)]
+        for el in self.elements:
+            for key, a, b in self.connections(el):
+                for row in ("f", "e"):
+                    ids = [self.block_id(x, row) if x in self.prims or x in self.hidden else
+                           f"{x}:x" if x in self.placeholders else f"{x}:{row}" for x in (a, b)]
+                    if any(i not in self.blocks for i in ids):
+                        continue
+                    blk = [self.blocks[i] for i in ids]
+                    tracked = key in self.track
+                    for k in (0, 1):
+                        me, there = blk[k], blk[1 - k]
+                        if me.row == "x" or me.bus or not (tracked or there.bus):
+                            continue
+                        level = self.bus[there.owner][1] if there.bus else self.track[key]
+                        order_key = (there.x, -level if there.x > me.x else level)
+                        legs[(me.id, row)].append((order_key, (key, ids[1 - k])))
+        for leg in self.legs:
+            if leg["track"] is not None:
+                own = self.block_id(leg["port"].rsplit(".", 1)[0], leg["row"])
+                far = 1e9 if leg["right"] else -1e9
+                lv = leg["track"]
+                legs[(own, leg["row"])].append(((far, -lv if leg["right"] else lv), ("leg", leg["port"])))
+        self.tap = {}
+        for (bid, _row), items in legs.items():
+            b = self.blocks[bid]
+            items = sorted(set(items))
+            n = len(items)
+            if n == 1:
+                self.tap[(bid, items[0][1])] = b.x
+                continue
+            step = 0.14
+            if b.kind == "dot":
+                b.w = max(b.w, step * (n - 1))
+            else:
+                b.w = max(b.w, step * (n - 1) + 0.2)
+            span = step * (n - 1)
+            for k, (_order, tkey) in enumerate(items):
+                self.tap[(bid, tkey)] = b.x - span / 2 + step * k
+
+    def tap_x(self, bid, key):
+        return self.tap.get((bid, key), self.blocks[bid].x)
 
     def pad_max(self):
         return max(self.pad.values(), default=0.0)
 
-    def track_route(self, own, other, row, k):
+    def track_route(self, own, other, row, k, key=None):
         """Route over inner track ``k``: out of the row away from the cross-couplings and back."""
         up = row == "f"
         a, b = self.blocks[own], self.blocks[other]
         yc = self.y_row(self.lane_of_block(own), row) + (0.28 + 0.13 * k) * (1 if up else -1)
 
-        def end(blk):
-            return (blk.x, blk.y) if blk.kind == "dot" else (blk.x, blk.y + (blk.h / 2 if up else -blk.h / 2))
-        return [end(a), (a.x, yc), (b.x, yc), end(b)]
+        def end(blk, there):
+            x = self.tap_x(blk.id, (key, there.id))
+            return (x, blk.y) if blk.kind == "dot" else (x, blk.y + (blk.h / 2 if up else -blk.h / 2))
+        ea, eb = end(a, b), end(b, a)
+        return [ea, (ea[0], yc), (eb[0], yc), eb]
+
+    def bus_route(self, own, other, row, key):
+        """Straight out of the row block to the bus bar above (flows) or below (efforts)."""
+        up = row == "f"
+        a, b = self.blocks[own], self.blocks[other]
+        bar, blk = (a, b) if a.bus else (b, a)
+        x = self.tap_x(blk.id, (key, bar.id))
+        start = (x, blk.y) if blk.kind == "dot" else (x, blk.y + (blk.h / 2 if up else -blk.h / 2))
+        if blk.row == "x":
+            start = (blk.x, blk.y + (blk.h / 2 if up else -blk.h / 2))
+            x = blk.x
+        pts = [start, (x, bar.y + (-bar.h / 2 if up else bar.h / 2))]
+        return pts if blk is a else pts[::-1]
 
     def lane_of_block(self, bid):
         b = self.blocks[bid]
@@ -907,8 +1563,9 @@ class _Layout:
             nx_, ny = self.node_pt[leg["node"].name][leg["row"]]
             shared[(own, nx_ < self.blocks[own].x)].append(leg)
         for legs in shared.values():
-            legs.sort(key=lambda lg: abs(self.node_pt[lg["node"].name][lg["row"]][1]
-                                         - self.y_row(self.lane[lg["el"]], lg["row"])))
+            legs.sort(key=lambda lg: (lg["node"].name in self.hop,
+                                      abs(self.node_pt[lg["node"].name][lg["row"]][1]
+                                          - self.y_row(self.lane[lg["el"]], lg["row"]))))
             for k, leg in enumerate(legs):
                 leg["slot"] = k
         for leg in self.legs:
@@ -920,6 +1577,8 @@ class _Layout:
             else:
                 ty = self.node_pt[n.name][row][1]
             leg["dir"] = 1 if ty > row_y + 1e-9 else -1
+            if n.name in self.hop:          # hopping wires leave outward, away from the rows
+                leg["dir"] = 1 if row == "f" else -1
             if leg["slot"] and len(n.ports) == 2 and abs(self.node_pt[n.name][row][1] - row_y) < 1e-9:
                 box = self.blocks[self.block_id(leg["port"].rsplit(".", 1)[0], row)].kind != "dot"
                 x, _ = self.node_pt[n.name][row]    # the invisible node point moves onto the shifted run
@@ -939,8 +1598,16 @@ class _Layout:
                 sx, sy, _ = self.pin(f"{n.name}:{row}", (nx_, yt), row)
             else:
                 sx, sy = nx_, ny
-            end = (b.x, b.y) if b.kind == "dot" else (b.x, b.y + (b.h / 2 if up else -b.h / 2))
-            return _simplify([(sx, sy), (nx_, yt), (b.x, yt), end])
+            x = self.tap_x(own, ("leg", leg["port"]))
+            end = (x, b.y) if b.kind == "dot" else (x, b.y + (b.h / 2 if up else -b.h / 2))
+            return _simplify([(sx, sy), (nx_, yt), (x, yt), end])
+        if b.bus:                           # up or down to the bus, then along it into its end
+            if len(n.ports) >= 3:
+                sx, sy, _ = self.pin(f"{n.name}:{row}", (nx_, b.y), row)
+            else:
+                sx, sy = nx_, ny
+            edge = b.x - b.w / 2 if nx_ < b.x else b.x + b.w / 2
+            return _simplify([(sx, sy), (nx_, b.y), (edge, b.y)])
         if leg["corridor"] is not None:
             side, _gap = leg["corridor"]
             k = corridor[side]
@@ -951,6 +1618,17 @@ class _Layout:
             y_run = row_y + (0.11 if box else 0.22) * (1 if up else -1)
             mid = [(nx_, yc), (xv, yc), (xv, y_run)]
             node_aim = (nx_, yc)
+        elif n.name in self.hop:           # around a node sitting on the row in this gap
+            _g, node_lane = self.node_gap[n.name]
+            y_hop = ny
+            y_run = row_y + (0.11 if box else 0.2) * leg["slot"] * leg["dir"]
+            if self.lane[leg["el"]] == node_lane:
+                c = self.col[leg["el"]]
+                xv = self.col_x[c] - 0.2 if leg["right"] is False else self.col_x[c] + self.col_w[c] + 0.2
+                mid = [(nx_, y_hop), (xv, y_hop), (xv, y_run)]
+            else:
+                xv, mid = nx_, [(nx_, y_run)]
+            node_aim = (nx_, y_hop)
         else:
             step = 0.11 if box else 0.2
             y_run = row_y + step * leg["slot"] * leg["dir"]
@@ -970,6 +1648,57 @@ class _Layout:
         else:                                       # a block between the rows: up or down into it
             pts += [(ex, y_run), (ex, ey)]
         return _simplify(pts)
+
+
+def _despike(first, second):
+    """The two legs of a two-port connection between elements meet at an invisible node point;
+    where both leave it the same way the wire would run out to the point and back (a stub that
+    ends in nothing).  Cut the spike and move the meeting point to where the legs part."""
+    p1, p2 = list(first.points), list(second.points)
+    if len(p1) < 2 or len(p2) < 2:
+        return
+    ends1, ends2 = (p1[0], p1[-1]), (p2[0], p2[-1])
+    shared = [(i, j) for i in (0, 1) for j in (0, 1) if _same(ends1[i], ends2[j])]
+    if not shared:
+        return
+    i, j = shared[0]
+    a = p1[::-1] if i == 0 else p1          # ... -> node
+    b = p2 if j == 0 else p2[::-1]          # node -> ...
+    while len(a) >= 2 and len(b) >= 2:
+        (ax, ay), (nx_, ny), (bx, by) = a[-2], a[-1], b[1]
+        da, db = (nx_ - ax, ny - ay), (bx - nx_, by - ny)
+        opposite = (abs(da[0]) < 1e-9 and abs(db[0]) < 1e-9 and da[1] * db[1] < 0) or \
+                   (abs(da[1]) < 1e-9 and abs(db[1]) < 1e-9 and da[0] * db[0] < 0)
+        if not opposite:
+            break
+        # the shorter arm ends on the longer one: the meeting point moves to its far end
+        if abs(da[0]) + abs(da[1]) <= abs(db[0]) + abs(db[1]):
+            a.pop()
+            b[0] = a[-1]
+            if len(a) < 2:
+                break
+        else:
+            b.pop(0)
+            a[-1] = b[0]
+            if len(b) < 2:
+                break
+    a, b = _simplify(a) if len(a) > 1 else a * 2, _simplify(b) if len(b) > 1 else b * 2
+    first.points = a[::-1] if i == 0 else a
+    second.points = b if j == 0 else b[::-1]
+
+
+def _same(p, q):
+    return abs(p[0] - q[0]) < 1e-9 and abs(p[1] - q[1]) < 1e-9
+
+
+def _group_symbols(symbols: dict) -> str:
+    """``r1 = 0.02, r2 = 0.06; in pg.mesh12: r1 = 0.024`` from {(scope, name): value}."""
+    scopes = defaultdict(list)
+    for (scope, name), value in sorted(symbols.items()):
+        scopes[scope].append(f"{_pretty_name(name)} = {_num(value)}")
+    parts = [", ".join(items) if not scope else f"in {scope}: " + ", ".join(items)
+             for scope, items in sorted(scopes.items())]
+    return "; ".join(parts)
 
 
 def _simplify(pts):
@@ -1012,13 +1741,15 @@ def layout(analysis: Analysis, types: dict | None = None, title: str = "", subti
     """
     lay = _Layout(analysis, types)
     lay.build()
+    lay.gyrator_links()
     ys = [b.y for b in lay.blocks.values()] + [g.y0 for g in lay.groups] + [g.y1 for g in lay.groups]
     ys += [p[1] for a in lay.arrows for p in a.points]
     xs = [p[0] for a in lay.arrows for p in a.points] + [g.x1 for g in lay.groups] + [0.0]
     extent = (min(xs) - 0.2, max(xs) + 0.3, min(ys) - 0.3, max(ys) + 0.25)
     return Diagram(title, subtitle, lay.blocks, lay.arrows, lay.groups, _messages(analysis), lay.n_lanes,
                    extent, bool(lay.demoted), bool(analysis.errors), _captions(analysis), lay.lane_h,
-                   lay.subgroups)
+                   lay.subgroups, lay.footnote_lines(), lay.links,
+                   {f"{ph}:x": gone for ph, (_p, _s, gone) in lay.placeholders.items()})
 
 
 def _captions(an: Analysis) -> tuple:
@@ -1035,9 +1766,9 @@ def _captions(an: Analysis) -> tuple:
 # ---------------------------------------------------------------------------------------------
 # drawing
 
-def render(diagram: Diagram, path) -> None:
-    """Draw ``diagram`` into ``path`` (``.png`` or ``.svg``) with matplotlib's Agg backend."""
-    import matplotlib
+def figure(diagram: Diagram):
+    """The matplotlib :class:`~matplotlib.figure.Figure` of ``diagram`` (Agg canvas, pyplot's
+    global state untouched).  Wires are ``Line2D`` with gid ``wire``; every text is a ``Text``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
@@ -1046,18 +1777,22 @@ def render(diagram: Diagram, path) -> None:
     xmin, xmax, ymin, ymax = diagram.extent
     margin_l = 1.45                      # row captions [in]
     width_in = max((xmax - xmin) * SCALE + margin_l + 0.3, 9.0)
-    chars = int(width_in * 72 / (9.0 * 0.56))
+    chars = int((width_in - 0.8) * 72 / (9.0 * 0.6))
     msg_lines = []
     for colour, text in diagram.messages:
         for line in textwrap.wrap(text, chars, subsequent_indent="    ", break_on_hyphens=False):
-            msg_lines.append((colour, line))
+            msg_lines.append((colour, line, 9))
+    foot_chars = int((width_in - 0.8) * 72 / (8.0 * 0.6))
+    for text in diagram.footnotes:
+        for line in textwrap.wrap(text, foot_chars, subsequent_indent="      ", break_on_hyphens=False):
+            msg_lines.append(("#444444", line, 8))
     title_lines = [diagram.title] + textwrap.wrap(diagram.subtitle, chars + 10)
     head_in = 0.3 + 0.22 * len(title_lines)
     legend_in = 0.75
     msg_in = 0.2 + 0.19 * len(msg_lines) if msg_lines else 0.0
     diag_in = (ymax - ymin) * SCALE
     height_in = head_in + diag_in + legend_in + msg_in + 0.15
-    fig = Figure(figsize=(width_in, height_in))     # Agg canvas; pyplot's global state untouched
+    fig = Figure(figsize=(width_in, height_in))
     FigureCanvasAgg(fig)
     ax = fig.add_axes([margin_l / width_in, (legend_in + msg_in + 0.1) / height_in,
                        (xmax - xmin) * SCALE / width_in, diag_in / height_in])
@@ -1091,8 +1826,7 @@ def render(diagram: Diagram, path) -> None:
         ax.add_patch(FancyBboxPatch((g.x0, g.y0), g.x1 - g.x0, g.y1 - g.y0, boxstyle="round,pad=0,rounding_size=0.08",
                                     fc="none", ec=CONFLICT if g.conflict else "#9a9a9a", lw=0.8, ls=(0, (3, 2)),
                                     zorder=1))
-        ax.text(g.x0 + 0.06, g.y0 + 0.04, g.label, fontsize=7, va="bottom", ha="left", color="#666666", zorder=7,
-                bbox=dict(boxstyle="square,pad=0.1", fc="#f6f6f3", ec="none"))
+        ax.text(g.x0 + 0.06, g.y0 + 0.04, g.label, fontsize=7, va="bottom", ha="left", color="#666666", zorder=7)
 
     for a in diagram.arrows:
         if not a.drawn or len(a.points) < 2:
@@ -1100,51 +1834,63 @@ def render(diagram: Diagram, path) -> None:
         xs, ys = zip(*a.points)
         style = "--" if not a.determined else "-"
         colour = a.colour
-        ax.plot(xs, ys, color=colour, lw=1.1, ls=style, zorder=2, solid_capstyle="butt")
+        ax.add_line(Line2D(xs, ys, color=colour, lw=1.1, ls=style, zorder=2, solid_capstyle="butt", gid="wire"))
         if a.head and a.determined:
             tb = diagram.blocks.get(a.target)
             end = a.points[-1]
             prev = a.points[-2]
-            shrink = 3.2 if tb is not None and tb.kind == "dot" and abs(end[0] - tb.x) < 1e-6 else 0.0
+            shrink = 3.2 if tb is not None and tb.kind == "dot" and abs(end[0] - tb.x) < 1e-6 and tb.w == 0 else 0.0
             ax.annotate("", xy=end, xytext=prev,
                         arrowprops=dict(arrowstyle="-|>,head_length=0.55,head_width=0.28", color=colour, lw=1.1,
                                         shrinkA=0, shrinkB=shrink), zorder=3)
+        segs = list(zip(a.points[:-1], a.points[1:]))
+        (x0, y0), (x1, y1) = max(segs, key=lambda s: abs(s[1][0] - s[0][0]) + abs(s[1][1] - s[0][1]))
+        vertical = abs(x1 - x0) < 1e-9
         if not a.determined:
-            segs = list(zip(a.points[:-1], a.points[1:]))
-            (x0, y0), (x1, y1) = max(segs, key=lambda s: abs(s[1][0] - s[0][0]) + abs(s[1][1] - s[0][1]))
-            vertical = abs(x1 - x0) < 1e-9
             ax.text((x0 + x1) / 2 + (0.07 if vertical else 0), (y0 + y1) / 2 + (0 if vertical else 0.06), "?",
                     color=CONFLICT, fontsize=10, weight="bold", ha="left" if vertical else "center",
                     va="center" if vertical else "bottom", zorder=6)
+        if a.multiplicity > 1:              # one wire for a collapsed run
+            ax.text((x0 + x1) / 2 + (0.06 if vertical else 0), (y0 + y1) / 2 + (0 if vertical else 0.04),
+                    f"×{a.multiplicity}", color=colour, fontsize=7, ha="left" if vertical else "center",
+                    va="center" if vertical else "bottom", zorder=6,
+                    bbox=dict(boxstyle="square,pad=0.05", fc="white", ec="none", alpha=0.85))
 
-    for b in diagram.blocks.values():               # a gyrator couples each row to the other
-        if b.kind == "gyrator" and b.row == "f":
-            other = diagram.blocks.get(b.id[:-2] + ":e")
-            if other is not None:
-                ax.plot([b.x, other.x], [b.y, other.y], color="#888888", lw=0.9, ls=(0, (2, 2)), zorder=1)
-                ax.text(b.x + 0.06, (b.y + other.y) / 2, "e ↔ f", fontsize=7.5, color="#555555", ha="left",
-                        va="center", zorder=6)
+    for pts, colour, head in diagram.links:       # gyrators: each effort from the other side's flow
+        (x0, y0), (x1, y1) = pts
+        ax.annotate("", xy=(x1, y1), xytext=(x0, y0), zorder=3,
+                    arrowprops=dict(arrowstyle="-|>,head_length=0.55,head_width=0.28" if head else "-",
+                                    color=colour, lw=1.0, shrinkA=0, shrinkB=0, ls="-" if head else "--"))
 
     for b in diagram.blocks.values():
         edge = CONFLICT if b.conflict else DERIVATIVE if b.derivative else "#222222"
         text_colour = CONFLICT if b.conflict else DERIVATIVE if b.derivative else "#111111"
-        if b.kind == "dot":
+        if b.kind == "dot" or (b.kind == "sum" and b.bus):
             colour = CONFLICT if b.conflict else (FLOW if b.row == "f" else EFFORT)
-            if b.w > 0:                             # a bus: a branching point at every wire on it
-                ax.plot([b.x - b.w / 2, b.x + b.w / 2], [b.y, b.y], color=colour, lw=2.2, zorder=4)
-                taps = {round(p[0], 6) for a in diagram.arrows if b.id in (a.source, a.target)
-                        for p in (a.points[0], a.points[-1])
-                        if abs(p[1] - b.y) < 1e-6 and abs(p[0] - b.x) <= b.w / 2 + 1e-6}
-                for x in taps | {b.x - b.w / 2, b.x + b.w / 2}:
+            mine = [a for a in diagram.arrows if b.id in (a.source, a.target) and a.drawn and a.points]
+            ends = {round(p[0], 6) for a in mine for p in (a.points[0], a.points[-1])
+                    if abs(p[1] - b.y) < 0.06 and abs(p[0] - b.x) <= b.w / 2 + 1e-6}
+            if b.w > 0:                             # a bus: a line with a branch at every wire on it
+                ax.plot([b.x - b.w / 2, b.x + b.w / 2], [b.y, b.y], color=colour, lw=2.2 if b.kind == "dot" else 1.6,
+                        zorder=4)
+            if b.kind == "dot":
+                for x in (ends | {b.x - b.w / 2, b.x + b.w / 2}) if b.w > 0 else {b.x}:
                     ax.plot([x], [b.y], "o", ms=6.5, color=colour, zorder=5)
-            else:
-                ax.plot([b.x], [b.y], "o", ms=6.5, color=colour, zorder=5)
+                continue
+            out = [a.points[0][0] for a in mine if a.source == b.id]     # the Σ sits where its result leaves
+            sx = out[0] if out else b.x - b.w / 2
+            sx = min(max(sx, b.x - b.w / 2 + 0.21), b.x + b.w / 2 - 0.21)
+            ax.add_patch(FancyBboxPatch((sx - 0.21, b.y - 0.17), 0.42, 0.34, boxstyle="square,pad=0", fc="white",
+                                        ec=edge, lw=1.0, zorder=5))
+            ax.text(sx, b.y, "Σ", fontsize=10, ha="center", va="center", color=text_colour, zorder=6)
             continue
         face = "#fff4f4" if b.conflict else "#f7f0fb" if b.derivative else "white"
-        ls = "--" if b.derivative else "-"
+        ls = "--" if b.derivative or b.kind == "repeat" else "-"
         shape = "round,pad=0,rounding_size=0.08" if b.row == "x" else "square,pad=0"
         ax.add_patch(FancyBboxPatch((b.x - b.w / 2, b.y - b.h / 2), b.w, b.h, boxstyle=shape, fc=face, ec=edge,
                                     lw=1.5 if b.derivative or b.conflict else 1.0, ls=ls, zorder=4))
+        if b.kind == "repeat":
+            ax.text(b.x, b.y + 0.5, "⋯", fontsize=16, ha="center", va="center", color="#555555", zorder=6)
         if b.note:
             ax.text(b.x, b.y + 0.09, b.label, fontsize=9, ha="center", va="center", color=text_colour, zorder=6)
             ax.text(b.x, b.y - 0.14, b.note, fontsize=7.5, ha="center", va="center", color=text_colour, zorder=6)
@@ -1162,6 +1908,9 @@ def render(diagram: Diagram, path) -> None:
         Patch(fc="#f7f0fb", ec=DERIVATIVE, ls="--", lw=1.5,
               label="derivative causality (d/dt): resolved into effective storage"),
     ]
+    if diagram.links:
+        handles.append(Line2D([], [], color="#555555", lw=1.0, marker=">", ms=5,
+                              label="gyrator: effort of one side from the flow of the other"))
     if diagram.has_conflict:
         handles.append(Patch(fc="#fdeaea", ec=CONFLICT, lw=1.4, label="conflict (error diagnostic)"))
     if any(not a.determined for a in diagram.arrows):
@@ -1171,9 +1920,18 @@ def render(diagram: Diagram, path) -> None:
     ncol = 4 if width_in > 14 else 3 if width_in > 10.5 else 2
     leg_ax.legend(handles=handles, loc="center", ncol=ncol, fontsize=7.5, frameon=False,
                   handlelength=2.2, columnspacing=1.6)
-    for k, (colour, line) in enumerate(msg_lines):
-        fig.text(0.5 / width_in, (msg_in - 0.15 - 0.19 * k) / height_in, line, fontsize=9, color=colour,
+    for k, (colour, line, size) in enumerate(msg_lines):
+        fig.text(0.5 / width_in, (msg_in - 0.15 - 0.19 * k) / height_in, line, fontsize=size, color=colour,
                  va="top", family="DejaVu Sans")
+    return fig
+
+
+def render(diagram: Diagram, path) -> None:
+    """Draw ``diagram`` into ``path`` (``.png`` or ``.svg``) with matplotlib's Agg backend."""
+    import matplotlib
+
+    fig = figure(diagram)
+    width_in = fig.get_size_inches()[0]
     fmt = Path(path).suffix.lower().lstrip(".")
     # SVG: text stays searchable text; fixed ids and no date, so a regenerated figure is identical
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "multipole"}):
@@ -1206,4 +1964,4 @@ def cmd_diagram(args) -> int:
     return 0 if analysis.ok else 1
 
 
-__all__ = ["Arrow", "Block", "Diagram", "Group", "cmd_diagram", "layout", "render"]
+__all__ = ["Arrow", "Block", "Diagram", "Group", "cmd_diagram", "figure", "layout", "render"]

@@ -9,7 +9,12 @@ rules for junctions, transformers and storage (Mehrpoltheorie, sections 4.1-4.3)
 * a transformer passes the flow one way and the effort the other way;
 * an inertia in integral causality receives the effort and returns the flow, in derivative
   causality the other way round.
+
+Readability is checked on the rendered figure with matplotlib's renderer: no two texts overlap,
+none leaves the figure, no wire runs through a text, no label is cut off; nested sub-elements
+follow the chain of connections, identical ones in the same inner order.
 """
+import re
 import xml.etree.ElementTree as ET
 from collections import Counter
 from pathlib import Path
@@ -19,7 +24,7 @@ import pytest
 from helpers import check, scene
 from multipole import pipeline
 from multipole.cli import main
-from multipole.diagram import layout
+from multipole.diagram import figure, layout
 from multipole.netlist import load
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -87,6 +92,9 @@ def _analysed():
         sc = scene(text)
         an = pipeline.check(sc)
         out.append((name, an, layout(an, sc.element_types)))
+    sc = load(ROOT / "diagrams" / "weber" / "piezo_stack.yaml", {"piezo.n": "3"})   # drawn in full
+    an = pipeline.check(sc)
+    out.append(("piezo_stack_3", an, layout(an, sc.element_types)))
     return out
 
 
@@ -96,6 +104,12 @@ WELL_POSED = [c for c in CASES if c[1].ok]
 
 def _ids(cases):
     return [c[0] for c in cases]
+
+
+def _hidden(diagram):
+    """Primitives inside sub-elements drawn collapsed (a placeholder stands for them)."""
+    gone = [g for subs in diagram.collapsed.values() for g in subs]
+    return lambda path: any(path.startswith(g + ".") for g in gone)
 
 
 def _rigid_loops(an):
@@ -168,7 +182,10 @@ def test_bad_input_is_one_line_and_exit_2(args, tmp_path, capsys):
 def test_every_primitive_has_a_block_in_its_element(case):
     _name, an, d = case
     owners = {b.owner for b in d.blocks.values()}
-    assert set(an.flat.primitives) <= owners
+    hidden = _hidden(d)
+    assert {p for p in an.flat.primitives if not hidden(p)} <= owners
+    assert all(b.kind == "repeat" for b in d.blocks.values() if b.owner not in an.flat.primitives
+               and "…" in b.owner)
     groups = {g.element: g for g in d.groups}
     assert set(groups) == {an.flat.element_of(p) for p in an.flat.primitives}
     for b in d.blocks.values():
@@ -184,17 +201,26 @@ def test_one_arrow_per_port_variable(case):
     counts = Counter(a.variable for a in d.arrows)
     assert set(counts) == {v.name for v in an.flat.variables()}
     assert set(counts.values()) == {1}
+    hidden = _hidden(d)
     for a in d.arrows:
-        assert a.source in d.blocks and a.target in d.blocks and a.source != a.target
+        assert a.source in d.blocks and a.target in d.blocks
         assert a.row == a.variable[-1]
+        assert a.hidden == hidden(a.variable.rsplit(".", 2)[0])
+        if a.hidden:                 # inside a collapsed run: no wire, stands at the placeholder
+            assert not a.drawn and d.blocks[a.source].kind == "repeat"
+        else:
+            assert a.source != a.target
 
 
 @pytest.mark.parametrize("case", WELL_POSED, ids=_ids(WELL_POSED))
 def test_arrows_lead_back_to_the_equation_that_computes_the_variable(case):
     _name, an, d = case
+    hidden = _hidden(d)
     for v in an.flat.variables():
         arrow = d.arrow_of(v.name)
         assert arrow.determined
+        if arrow.hidden or hidden(an.computed_by(v) or ""):
+            continue                 # computed inside a collapsed run
         assert _trace(d, arrow) == an.computed_by(v), v.name
 
 
@@ -240,8 +266,9 @@ def test_storage_integral_or_derivative_causality(case):
     _name, an, d = case
     demoted = {s.owner for s in an.demoted}
     rigid = _rigid_loops(an)
+    hidden = _hidden(d)
     for p, prim in an.flat.primitives.items():
-        if prim.kind not in ("I", "C") or (p not in demoted and an.flat.element_of(p) in rigid):
+        if prim.kind not in ("I", "C") or (p not in demoted and an.flat.element_of(p) in rigid) or hidden(p):
             continue
         b = d.blocks[f"{p}:x"]
         received = "e" if prim.kind == "I" else "f"    # integral causality: integrate the input
@@ -367,6 +394,8 @@ def test_nested_networks_are_kept_together_in_sub_frames():
 def test_wires_are_orthogonal_and_end_on_their_blocks(case):
     _name, _an, d = case
     for a in d.arrows:
+        if a.hidden:
+            continue
         pts = a.points
         assert len(pts) >= 2, a.variable
         for (x0, y0), (x1, y1) in zip(pts[:-1], pts[1:]):
@@ -379,3 +408,193 @@ def test_wires_are_orthogonal_and_end_on_their_blocks(case):
         assert touches(pts[0], a.source) or touches(pts[-1], a.target), a.variable
         if a.head:
             assert touches(pts[-1], a.target), a.variable
+
+
+# ---------------------------------------------------------------------------------------------
+# the rendered figure: texts measured with matplotlib's renderer (display pixels)
+
+def _measure(diagram):
+    """(figure, [(text, bbox)], [wire segments]) of the rendered diagram."""
+    from matplotlib.text import Text
+    fig = figure(diagram)
+    fig.set_dpi(60)                      # extents scale with the dpi; a coarse raster is faster
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+    texts = [(t.get_text(), t.get_window_extent(renderer)) for t in fig.findobj(Text)
+             if t.get_visible() and t.get_text().strip()]
+    ax = fig.axes[0]
+    wires = []
+    for line in ax.lines:
+        if line.get_gid() == "wire":
+            xy = ax.transData.transform(line.get_xydata())
+            wires += list(zip(map(tuple, xy[:-1]), map(tuple, xy[1:])))
+    return fig, texts, wires
+
+
+def _boxes_overlap(a, b, tol=0.5):
+    return a.x0 + tol < b.x1 - tol and b.x0 + tol < a.x1 - tol and a.y0 + tol < b.y1 - tol and b.y0 + tol < a.y1 - tol
+
+
+def _crosses(bb, p, q, tol=1.0):
+    """An axis-parallel segment p-q passes through the inside of box bb."""
+    (x0, y0), (x1, y1) = p, q
+    if abs(y0 - y1) < 1e-6:
+        return bb.y0 + tol < y0 < bb.y1 - tol and min(x0, x1) < bb.x1 - tol and max(x0, x1) > bb.x0 + tol
+    return bb.x0 + tol < x0 < bb.x1 - tol and min(y0, y1) < bb.y1 - tol and max(y0, y1) > bb.y0 + tol
+
+
+@pytest.mark.parametrize("case", CASES, ids=_ids(CASES))
+def test_texts_apart_inside_the_figure_and_off_the_wires(case):
+    _name, _an, d = case
+    fig, texts, wires = _measure(d)
+    width, height = fig.bbox.width, fig.bbox.height
+    for text, bb in texts:
+        assert bb.x0 >= -1 and bb.y0 >= -1 and bb.x1 <= width + 1 and bb.y1 <= height + 1, f"clipped: {text!r}"
+    for i, (ta, a) in enumerate(texts):
+        for tb, b in texts[i + 1:]:
+            assert not _boxes_overlap(a, b), f"{ta!r} overlaps {tb!r}"
+    assert wires
+    for text, bb in texts:
+        if text == "?" or text.startswith("×"):      # marks that sit on their wire on purpose
+            continue
+        for p, q in wires:
+            assert not _crosses(bb, p, q), f"a wire runs through {text!r}"
+
+
+@pytest.mark.parametrize("case", CASES, ids=_ids(CASES))
+def test_labels_are_never_cut(case):
+    _name, _an, d = case
+    for b in d.blocks.values():
+        assert not b.label.endswith("…") and not b.note.endswith("…"), b.id
+    refs = {int(m) for b in d.blocks.values() for m in re.findall(r"\[(\d+)\]", b.label + b.note)}
+    notes = [line for line in d.footnotes if line.startswith("[")]
+    assert refs == set(range(1, len(notes) + 1))        # every footnote mark has its footnote
+
+
+def test_long_expressions_in_full():
+    """Weber's ρ_X/r ratios of the normal level and a long source law are written out in full."""
+    sc = load(ROOT / "diagrams" / "weber" / "spur_normal_teaching.yaml")
+    d = layout(pipeline.check(sc), sc.element_types)
+    labels = {b.label for b in d.blocks.values() if b.owner.startswith("mesh.tangent")}
+    assert {"g/r1 + sin(α)", "-g/r2 + sin(α)"} <= labels | {line.split(": ", 1)[-1] for line in d.footnotes}
+    assert any(line.startswith("symbols in the blocks:") and "α = 0.349" in line and "g = 0.002" in line
+               for line in d.footnotes)
+    sc = load(ROOT / "diagrams" / "weber" / "piezo_stack.yaml")
+    d = layout(pipeline.check(sc), sc.element_types)
+    assert d.blocks["amp:x"].note == "e = [1]"
+    assert "[1] amp: e = U0*(1 - cos(pi*min(1, t/t_r)))/2" in d.footnotes
+
+
+def test_planetary_ratios_symbolic_and_meshes_in_chain_order():
+    sc = load(ROOT / "diagrams" / "weber" / "planetary_willis.yaml")
+    an = pipeline.check(sc)
+    d = layout(an, sc.element_types)
+    ratios = [b.label for b in d.blocks.values() if b.kind == "ratio"]
+    assert ratios and all(re.search(r"r[12]", r) for r in ratios), ratios      # no bare 125/9 or 0.024
+    assert any("in pg.mesh34: r1 = 0.024, r2 = 0.072" in line for line in d.footnotes)
+    frames = {g.element: g for g in d.subgroups}
+    x = {b.owner: b.x for b in d.blocks.values()}
+    # sun -> sun's relative-speed junction -> mesh12 -> planet -> mesh34 -> ring's junction
+    assert x["pg.rel_sun"] < frames["pg.mesh12"].x0 < frames["pg.mesh12"].x1 < x["pg.planet"] \
+        < frames["pg.mesh34"].x0 < frames["pg.mesh34"].x1 < x["pg.rel_ring"]
+    assert d.lanes == 1                     # the three sources sit in the gear's lane
+    assert {g.element for g in d.groups if g.x0 > frames["pg.mesh34"].x1} == {"carrier", "ring"}
+
+
+def _frame_order(d, parent):
+    frames = sorted((g for g in d.subgroups if g.element.startswith(parent + ".")), key=lambda g: g.x0)
+    return [g.element.rsplit(".", 1)[1] for g in frames]
+
+
+def test_identical_sub_elements_in_chain_order_and_alike():
+    d = next(c[2] for c in CASES if c[0] == "piezo_stack_3")
+    assert _frame_order(d, "piezo") == ["e1", "e2", "e3"]
+    inner = []
+    for disc in ("e1", "e2", "e3"):
+        prims = sorted((b for b in d.blocks.values() if b.owner.startswith(f"piezo.{disc}.") and b.row != "x"),
+                       key=lambda b: b.x)
+        inner.append(list(dict.fromkeys(b.owner.split(".", 2)[2] for b in prims)))
+    assert inner[0] == inner[1] == inner[2] and len(inner[0]) >= 3
+    # mechanically in series: each disc's tip is its last item, next to the following disc's base
+    assert inner[0][0] == "gap" and inner[0][-1] == "tip"
+
+
+def test_large_repeat_drawn_collapsed_with_a_note():
+    sc = load(ROOT / "diagrams" / "weber" / "piezo_stack.yaml")
+    an = pipeline.check(sc)
+    d = layout(an, sc.element_types)
+    assert _frame_order(d, "piezo") == ["e1", "e2", "e10"]
+    ph = next(b for b in d.blocks.values() if b.kind == "repeat")
+    assert ph.label == "7 × piezo_element"
+    e2 = next(g for g in d.subgroups if g.element == "piezo.e2")
+    e10 = next(g for g in d.subgroups if g.element == "piezo.e10")
+    assert e2.x1 < ph.x < e10.x0
+    assert d.collapsed[ph.id] == [f"piezo.e{k}" for k in range(3, 10)]
+    assert any(line.startswith("piezo: 10 × piezo_element, drawn: 3 (e1, e2, e10)") for line in d.footnotes)
+    # the seven parallel electrical wires of the hidden discs are one wire marked ×7
+    multi = [a for a in d.arrows if a.multiplicity > 1]
+    assert multi and {a.multiplicity for a in multi} == {7} and all(a.drawn for a in multi)
+    # the parallel electrodes are buses: one line each instead of a wire bundle
+    assert {b.owner for b in d.blocks.values() if b.bus} == {"piezo.plus", "piezo.minus"}
+
+
+def test_terminals_packed_next_to_what_they_act_on():
+    for name in ("piezo_element", "planetary_willis", "dc_motor_gear_load", "drive_train"):
+        _n, an, d = next(c for c in CASES if c[0] == name)
+        frames = {g.element: g for g in d.groups}
+        assert d.lanes <= 2, name
+        for el, g in frames.items():
+            partners = {an.flat.element_of(p) for n in an.flat.nodes if n.origin != "termination"
+                        for p in n.ports if any(an.flat.element_of(q) == el for q in n.ports)} - {el}
+            if len(partners) == 1:           # a source or ground: beside or right below its partner
+                other = frames[partners.pop()]
+                gap = max(other.x0 - g.x1, g.x0 - other.x1)
+                same_lane = abs(g.y0 - other.y0) < d.lane_h / 2
+                assert gap < 3.0 or (same_lane and gap < 8.0), (name, el)
+    d = next(c[2] for c in CASES if c[0] == "piezo_element")
+    assert d.lanes == 2                 # was three lanes, two of them nearly empty
+
+
+def test_two_port_connections_have_no_dead_end():
+    """Where the two legs of a connection between elements meet, the wire goes on (no stub that
+    runs out to the node point and back)."""
+    for _name, an, d in CASES:
+        for n in an.flat.nodes:
+            if len(n.ports) != 2 or len({an.flat.element_of(p) for p in n.ports}) != 2:
+                continue
+            for row in ("e", "f"):
+                a, b = (d.arrow_of(f"{p}.{row}") for p in n.ports)
+                pa, pb = a.points, b.points
+                shared = [(i, j) for i in (0, -1) for j in (0, -1)
+                          if abs(pa[i][0] - pb[j][0]) < 1e-9 and abs(pa[i][1] - pb[j][1]) < 1e-9]
+                assert shared, (n.name, row)
+                i, j = shared[0]
+                near_a, near_b = pa[1 if i == 0 else -2], pb[1 if j == 0 else -2]
+                meet = pa[i]
+                da = (near_a[0] - meet[0], near_a[1] - meet[1])
+                db = (near_b[0] - meet[0], near_b[1] - meet[1])
+                same_way = (abs(da[0]) < 1e-9 and abs(db[0]) < 1e-9 and da[1] * db[1] > 0) or \
+                           (abs(da[1]) < 1e-9 and abs(db[1]) < 1e-9 and da[0] * db[0] > 0)
+                assert not same_way, (n.name, row)
+
+
+def test_gyrator_ties_each_effort_to_the_other_sides_flow():
+    _n, an, d = next(c for c in CASES if c[0] == "dc_motor_gear_load")
+    gy = next(p for p, prim in an.flat.primitives.items() if prim.kind == "GY")
+    bf, be = d.blocks[f"{gy}:f"], d.blocks[f"{gy}:e"]
+    assert len(d.links) == 2
+    side = {}
+    for port in ("a", "b"):
+        arrow = d.arrow_of(f"{gy}.{port}.f")
+        end = arrow.points[0] if arrow.source == bf.id else arrow.points[-1]
+        side[port] = end[0] < bf.x
+    for pts, _colour, head in d.links:
+        assert head
+        (x0, y0), (x1, y1) = pts
+        assert (y0 > y1) == (abs(y0 - (bf.y - bf.h / 2)) < 1e-9)     # from the flow block down, or up
+        start_left, end_left = x0 < bf.x, x1 < bf.x
+        assert start_left != end_left                                # across: one side to the other
+    # the current (received on the electrical side) sets the torque on the shaft side, the speed
+    # (received on the shaft side) the back-emf on the electrical side: both links point down
+    assert not an.computed_by(f"{gy}.a.f") == gy and not an.computed_by(f"{gy}.b.f") == gy
+    assert all(pts[0][1] > pts[1][1] for pts, _c, _h in d.links)

@@ -615,6 +615,8 @@ def equal_error(rep: SceneReport, backend: str, levels=EQUAL_ERROR_LEVELS) -> li
         row["backend_newton"] = comp.newton_iterations if comp else math.nan
         if level <= 3 * rep.reference.error:
             row["verdict"] = f"not measurable (reference error {rep.reference.error:.1g})"
+        elif comp is None and hand is None:
+            row["verdict"] = "not compared: no run of either reached it"
         elif comp is None:
             row["verdict"] = f"not met: no {backend} run reached it"
         elif hand is None:

@@ -132,3 +132,26 @@ def test_naive_run_over_budget_gives_a_lower_bound_of_the_speedup():
     hand = [r for r in rep.runs if r.backend == "scipy-hand"]
     assert {r.status for r in hand if r.solver in ("RK45", "DOP853")} == {"skipped"}      # stability bound
     assert all(r.status == "ok" and r.err_max < 1e-4 for r in hand if r.solver in ("Radau", "BDF", "LSODA"))
+
+
+def test_equal_error_takes_the_fastest_run_of_each_side_at_each_level():
+    from multipole.bench import Reference, Run, SceneReport, equal_error
+    rep = SceneReport("s", "s.yaml", Reference("tight", "y", 1.0, 0.1, 1e-8, "tight"))
+    # (backend, solver, err_max, wall_s): the hand-written side reaches 1e-3 at best in 10 ms (LSODA), 1e-6 in
+    # 60 ms (Radau; BDF is faster but not accurate enough); the compiled side 1e-3 in 0.2 ms, 1e-6 in 4 ms
+    for backend, solver, err, wall in (("scipy-hand", "LSODA", 5e-4, 0.010), ("scipy-hand", "BDF", 2e-6, 0.020),
+                                       ("scipy-hand", "Radau", 5e-7, 0.060), ("scipy-hand", "RK45", 5e-4, 0.030),
+                                       ("numba", "RK45", 8e-4, 0.0002), ("numba", "Radau", 9e-7, 0.004),
+                                       ("numba", "Radau", 1e-12, 0.009)):
+        rep.runs.append(Run("s", backend, solver, 1e-3, 1e-6, err_max=err, wall_s=wall, chosen=solver))
+    rep.runs.append(Run("s", "numba", "RK45", 1e-3, 1e-6, status="failed", err_max=1e-13, wall_s=1e-6))
+    rows = {r["level"]: r for r in equal_error(rep, "numba", levels=(1e-3, 1e-6, 1e-7, 1e-9))}
+    assert rows[1e-3]["hand_solver"] == "LSODA" and rows[1e-3]["ratio"] == pytest.approx(0.010 / 0.0002)
+    assert rows[1e-3]["verdict"] == "met"
+    assert rows[1e-6]["hand_solver"] == "Radau" and rows[1e-6]["ratio"] == pytest.approx(0.060 / 0.004)
+    assert rows[1e-6]["verdict"] == "not met"                         # 15 < 20
+    assert rows[1e-7]["verdict"] == "no hand-written run reached it"  # the compiled side did (1e-12)
+    assert rows[1e-9]["verdict"].startswith("not measurable")       # within 3x the reference's own error
+    rep.runs = [r for r in rep.runs if r.err_max > 1e-11]
+    rows = {r["level"]: r for r in equal_error(rep, "numba", levels=(1e-7,))}
+    assert rows[1e-7]["verdict"].startswith("not compared")         # neither side reached it

@@ -2,7 +2,7 @@
 
 Chains of N = 10, 100, 1000 mass-spring pairs (elements/scenes.py: mass_spring_chain).  For each N:
 check time (flatten + analyse), compile time (flatten + analyse + assemble + codegen, split by
-stage), time per right-hand-side call (generated and hand-written numpy), time per Jacobian call,
+stage; the repeat with the median compile time of three), time per right-hand-side call (generated and hand-written numpy), time per Jacobian call,
 and one short simulation (its cost per accepted step [µs]).  Log-log slopes between consecutive sizes.
 
     python benchmarks/chain_scaling.py [--sizes 10 100 1000] [--out docs/bench]
@@ -110,10 +110,15 @@ def plot(rows, path) -> None:
     plt.close(fig)
 
 
-def run(sizes=(10, 100, 1000), out=ROOT / "docs" / "bench", figures=ROOT / "docs" / "figures", verbose=True):
+def run(sizes=(10, 100, 1000), out=ROOT / "docs" / "bench", figures=ROOT / "docs" / "figures", verbose=True,
+        repeats=3):
+    """Measure every size ``repeats`` times and keep, per size, the repeat whose compile time is the
+    median (a whole repeat, so that its stage times add up); one untimed warm-up first (imports)."""
     rows = []
+    measure(sizes[0])
     for n in sizes:
-        row = measure(n)
+        runs = sorted((measure(n) for _ in range(repeats)), key=lambda r: r["compile_s"])
+        row = runs[len(runs) // 2]
         rows.append(row)
         if verbose:
             print(f"N = {n:5d}: check {row['check_s']:.3g} s, compile {row['compile_s']:.3g} s, "

@@ -322,12 +322,17 @@ def _structure(eq, outputs) -> tuple:
 
 
 def translate(eq, outputs) -> tuple[str, list]:
-    """:func:`generate`, remembered for the structure of ``eq`` within this process."""
+    """:func:`generate`, remembered for the structure of ``eq`` within this process (and on the
+    equations object itself, so that running the same equations again costs no hashing)."""
+    mine = getattr(eq, "_numba_translation", None)
+    if mine is not None and mine[0] == tuple(outputs):
+        return mine[1]
     key = _structure(eq, outputs)
     if key not in _SOURCES:
         if len(_SOURCES) > 256:
             _SOURCES.clear()
         _SOURCES[key] = generate(eq, outputs)
+    eq._numba_translation = (tuple(outputs), _SOURCES[key])
     return _SOURCES[key]
 
 
@@ -467,10 +472,13 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     source, switch_text = translate(equations, outputs)
     translate_time = time.perf_counter() - start
     n = len(equations.states)
-    x0 = np.array(equations.initial_values(), dtype=float)
+    x0 = _initial_state(equations)
     try:
         module = load(source)
-        method, reason = _method(module, solver, x0, t_end, rtol)
+        choices = equations.__dict__.setdefault("_numba_methods", {})   # the choice, once per run setting
+        if (solver, t_end, rtol) not in choices:
+            choices[(solver, t_end, rtol)] = _method(module, solver, x0, t_end, rtol)
+        method, reason = choices[(solver, t_end, rtol)]
         cached = _compile(module, n, len(switch_text))
     except Exception as exc:       # numba raises NumbaError, but also internal AssertionErrors
         return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
@@ -521,6 +529,14 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     out = {name: Y[:, k].copy() for k, name in enumerate(outputs)}
     units = {o: getattr(equations, "units", {}).get(o, "") for o in outputs}
     return Result(grid, out, work.X, list(equations.state_names), method, reason, stats, events, units=units)
+
+
+def _initial_state(equations) -> np.ndarray:
+    """``equations.initial_values()`` as an array, worked out once per equations object."""
+    x0 = getattr(equations, "_numba_x0", None)
+    if x0 is None:
+        x0 = equations._numba_x0 = np.array(equations.initial_values(), dtype=float)
+    return x0.copy()
 
 
 def _method(module, solver, x0, t_end, rtol) -> tuple[str, str]:

@@ -330,11 +330,25 @@ class _Writer:
             self._lines[key] = self._unit_lines(u)
         return self._lines[key]
 
+    def assignment(self, name: str, expr) -> list:
+        """``name = expr``; a large expression (the effective inertia of a mechanism, say) is split
+        by common-subexpression elimination into temporaries ``_cN`` computed once."""
+        folded = sp.sympify(expr).xreplace(self.pvals)
+        if sp.count_ops(folded) <= CSE_MIN_OPS:
+            return [f"    {name} = {self.P(expr)}"]
+        self._cse_count = getattr(self, "_cse_count", 0) + 1
+        temps, (reduced,) = sp.cse([folded], symbols=sp.numbered_symbols(f"_c{self._cse_count}_"))
+        lines = []
+        for sym, sub in temps:
+            self.names[sym] = str(sym)
+            lines.append(f"    {sym} = {self.P(sub)}")
+        return lines + [f"    {name} = {self.P(reduced)}"]
+
     def _unit_lines(self, u: _Unit) -> list:
         N, P = self.names, self.P
         zs = u.variables
         if u.kind == "assign":
-            return [f"    {N[zs[0]]} = {P(u.exprs[0])}"]
+            return self.assignment(N[zs[0]], u.exprs[0])
         b = self.eq.blocks[u.block]
         n = len(zs)
         lhs = f"    {', '.join(N[z] for z in zs)}, ="
@@ -494,6 +508,9 @@ def _diff(expr, w):
     split = linear_coefficient(expr, w)
     return split[0] if split is not None else sp.diff(expr, w)
 
+
+#: Expressions with more operations than this are printed after common-subexpression elimination.
+CSE_MIN_OPS = 40
 
 #: From this many states on, an affine right-hand side is generated as one sparse matrix product:
 #: flat scalar code costs about 0.15 µs per line, the product about 3 ns per nonzero plus 6 µs.

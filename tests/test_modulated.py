@@ -38,3 +38,15 @@ def test_crank_driving_a_mass_conserves_energy_over_100_periods():
     assert np.allclose(x, r * np.sin(q), atol=1e-8)
     energy = 0.5 * J * w**2 + 0.5 * m * v**2 + 0.5 * k * x**2
     assert np.max(np.abs(energy - energy[0])) / energy[0] <= 1e-8
+
+
+def test_large_expressions_are_printed_with_common_subexpressions_once():
+    """The slider-crank's effective inertia is a long expression in sin, cos and a square root of the
+    crank angle; after common-subexpression elimination each is evaluated once per call of rhs."""
+    from pathlib import Path
+
+    from multipole import load, pipeline
+    scene = load(Path(__file__).resolve().parents[1] / "diagrams" / "hard" / "slider_crank.yaml")
+    source = pipeline.model(scene).source
+    rhs = source.split("def rhs(t, x):")[1].split("\ndef ")[0]
+    assert rhs.count("math.sin(") == 1 and rhs.count("math.cos(") == 1 and rhs.count("math.sqrt(") == 1

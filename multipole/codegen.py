@@ -21,16 +21,37 @@ from .errors import ModelError, NewtonError
 from .primitives import T
 
 
+def _residual(fun, z):
+    """``fun(z)``, or None where the residual cannot be evaluated (overflow of exp/sinh, a root or
+    logarithm of a negative number): the damped step then shortens."""
+    try:
+        return fun(z)
+    except (OverflowError, ValueError, ZeroDivisionError):
+        return None
+
+
 def _damped_newton(fun, z, tol: float, max_iter: int):
     """Damped Newton from ``z``: ``(solution, iterations)``, or ``(None, iterations)`` if it fails."""
-    F, J = fun(z)
+    start = _residual(fun, z)
+    if start is None:
+        return None, 0
+    F, J = start
     norm = np.linalg.norm(F)
     for it in range(1, max_iter + 1):
-        dz = np.linalg.solve(J, F)
+        try:
+            dz = np.linalg.solve(J, F)
+        except np.linalg.LinAlgError:
+            return None, it
         lam = 1.0
         while True:
             z_new = z - lam * dz
-            F_new, J_new = fun(z_new)
+            trial = _residual(fun, z_new)
+            if trial is None and lam >= 1e-6:
+                lam *= 0.5
+                continue
+            if trial is None:
+                return None, it
+            F_new, J_new = trial
             if np.linalg.norm(F_new) <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
                 break
             lam *= 0.5
@@ -60,9 +81,10 @@ def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12):
             stats["newton_solves"] += 1
             store[k] = z
             return z
-    norm = np.linalg.norm(fun(np.asarray(store[k], dtype=float))[0])
+    last = _residual(fun, np.asarray(store[k], dtype=float))
+    norm = f"{np.linalg.norm(last[0]):.3g}" if last is not None else "not computable"
     raise NewtonError(f"Newton's method did not converge in algebraic loop {k} "
-                      f"(|F| = {norm:.3g} at the last solution, {total} iterations)")
+                      f"(|F| = {norm} at the last solution, {total} iterations)")
 
 
 class _Printer(PythonCodePrinter):

@@ -118,9 +118,10 @@ class Equations:
                 lines.append(f"  {name} = {self.substituted(self.output(name))}")
             numeric = [b for b in self.blocks if b.solution is None]
             if numeric:
-                names = ", ".join(str(v) for b in numeric for v in b.variables)
-                lines.append(f"  where {names} solve the algebraic loop(s) below at every evaluation "
-                             "(no closed form)")
+                unknowns = [str(v) for b in numeric for v in b.variables]
+                verb = "solves" if len(unknowns) == 1 else "solve"
+                lines.append(f"  where {', '.join(unknowns)} {verb} the algebraic loop(s) below at every "
+                             "evaluation (no closed form)")
         lines += ["", "Evaluation order (causal assignments):"]
         for b in self.blocks:
             if b.kind == "explicit":
@@ -267,8 +268,10 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             continue
         A, b = _solve_linear(res, zs)
         if A is None:
-            blocks.append(Block("newton", zs, None, res, owners, notes))
-            diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res))
+            kept, torn = _tear(res, zs, owners, notes, analysis.flat.param_values())
+            blocks.append(Block("newton", *kept))
+            blocks += [Block("explicit", [z], [sol], [r], [o], [n]) for z, sol, r, o, n in reversed(torn)]
+            diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res, kept[0]))
             continue
         numeric = A.xreplace(analysis.flat.param_values())
         if not any(x.free_symbols for x in numeric) and sp.Matrix(numeric).det() == 0:
@@ -289,9 +292,43 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
                      analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
 
 
-def _loop_diag(analysis, owners, zs, kind, res):
+def _tear(res, zs, owners, notes, values):
+    """Split a nonlinear loop: a residual that is linear in one of the loop's variables, with a
+    coefficient that is a nonzero number and free of the loop's variables, gives that variable
+    explicitly; it is substituted into the other residuals, until one unknown is left or no such
+    pair remains.  Returns ``(variables, None, residuals, owners, notes)`` for Newton's method and
+    the torn ``(variable, solution, residual, owner, note)`` in the order they were torn (compute
+    them in reverse after the Newton solve)."""
+    res, zs, owners, notes = list(res), list(zs), list(owners), list(notes)
+    torn = []
+    while len(zs) > 1:
+        pick = None
+        for i, r in enumerate(res):
+            for z in zs:
+                split = linear_coefficient(r, z)
+                if split is None or split[0].free_symbols & set(zs):
+                    continue
+                a = sp.sympify(split[0]).xreplace(values)
+                if a.is_number and a != 0:
+                    pick = i, z, -split[1] / split[0]
+                    break
+            if pick:
+                break
+        if pick is None:
+            break
+        i, z, sol = pick
+        torn.append((z, sol, res[i], owners[i], notes[i]))
+        del res[i], owners[i], notes[i]
+        zs.remove(z)
+        res = [r.xreplace({z: sol}) for r in res]
+    return (zs, None, res, owners, notes), torn
+
+
+def _loop_diag(analysis, owners, zs, kind, res, iterated=None):
     els = sorted({analysis.flat.element_of(o) for o in owners})
     how = "solved symbolically" if kind == "linear" else "iterated by Newton's method in the generated code"
+    if iterated is not None and len(iterated) < len(zs):
+        how += f" on {', '.join(map(str, iterated))}, the others explicit from it"
     return Diagnostic("algebraic_loop", f"{kind} algebraic loop through {', '.join(els)} "
                       f"(unknowns {', '.join(map(str, zs))}): {how}", elements=els)
 

@@ -12,7 +12,6 @@ Writes chain_scaling.csv and docs/figures/bench_chain_scaling.png.
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import time
 from pathlib import Path
@@ -20,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from elements.scenes import hand_model, mass_spring_chain
-from multipole.bench import _time_calls
+from multipole.bench import _time_calls, write_rows
 from multipole.causality import analyse
 from multipole.codegen import compile_model
 from multipole.equations import assemble
@@ -126,11 +125,7 @@ def run(sizes=(10, 100, 1000), out=ROOT / "docs" / "bench", figures=ROOT / "docs
     out, figures = Path(out), Path(figures)
     out.mkdir(parents=True, exist_ok=True)
     figures.mkdir(parents=True, exist_ok=True)
-    with open(out / "chain_scaling.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, FIELDS)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_rows(rows, FIELDS, out / "chain_scaling.csv")
     plot(rows, figures / "bench_chain_scaling.png")
     return rows
 

@@ -11,12 +11,12 @@ Writes long_horizon.csv and docs/figures/bench_long_horizon.png.
 from __future__ import annotations
 
 import argparse
-import csv
 from pathlib import Path
 
 import numpy as np
 
 from elements.scenes import _TWO_MASS, _two_mass_matrix, _two_mass_x0, linear_response, two_mass_oscillator
+from multipole.bench import write_rows
 from multipole import pipeline
 from multipole.netlist import loads
 from multipole.simulate import simulate
@@ -62,11 +62,7 @@ def run(periods=1e4, rtol=1e-6, out=ROOT / "docs" / "bench", figures=ROOT / "doc
     out, figures = Path(out), Path(figures)
     out.mkdir(parents=True, exist_ok=True)
     figures.mkdir(parents=True, exist_ok=True)
-    with open(out / "long_horizon.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, FIELDS)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_rows(rows, FIELDS, out / "long_horizon.csv")
     plot(curves, periods, figures / "bench_long_horizon.png")
     return rows
 

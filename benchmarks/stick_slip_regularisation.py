@@ -11,12 +11,12 @@ regularised model's, not the solver's).  Writes stick_slip.csv.
 """
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 
 from elements.scenes import stick_slip, stick_slip_exact
+from multipole.bench import write_rows
 from multipole import pipeline
 from multipole.netlist import loads
 
@@ -50,11 +50,7 @@ def run(out=ROOT / "docs" / "bench", verbose=True):
                   f"steps {r['steps']}, nfev {r['nfev']}", flush=True)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / "stick_slip.csv", "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, FIELDS)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    write_rows(rows, FIELDS, out / "stick_slip.csv")
     return rows
 
 

@@ -683,7 +683,7 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     out.mkdir(parents=True, exist_ok=True)
     write_csv(reports, out / "bench.csv")
     write_side_csv(reports, out / "side_by_side.csv")
-    _write_rows([row for rep in reports for row in rep.equal], EQUAL_FIELDS, out / "equal_error.csv")
+    write_rows([row for rep in reports for row in rep.equal], EQUAL_FIELDS, out / "equal_error.csv")
     figs = Path(figures_dir) if figures_dir else out
     figs.mkdir(parents=True, exist_ok=True)
     for rep in reports:
@@ -693,7 +693,7 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     return reports
 
 
-def _write_rows(rows, fields, path) -> None:
+def write_rows(rows, fields, path) -> None:
     """Dicts as CSV rows (floats to 6 significant digits; keys outside ``fields`` left out)."""
     with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fields)
@@ -703,7 +703,7 @@ def _write_rows(rows, fields, path) -> None:
 
 
 def write_csv(reports, path) -> None:
-    _write_rows([r.row() for rep in reports for r in rep.runs], CSV_FIELDS, path)
+    write_rows([r.row() for rep in reports for r in rep.runs], CSV_FIELDS, path)
 
 
 SIDE_FIELDS = ["scene", "n_states", "solver", "rtol", "rhs_generated_us", "rhs_hand_us", "rhs_ratio", "jac_ratio",
@@ -717,7 +717,7 @@ EQUAL_FIELDS = ["scene", "backend", "level", "hand_solver", "hand_rtol", "hand_s
 
 
 def write_side_csv(reports, path) -> None:
-    _write_rows([rep.side for rep in reports if rep.side], SIDE_FIELDS, path)
+    write_rows([rep.side for rep in reports if rep.side], SIDE_FIELDS, path)
 
 
 _STYLE = {"RK45": ("tab:blue", "o"), "DOP853": ("tab:orange", "s"), "Radau": ("tab:green", "^"),

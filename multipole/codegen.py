@@ -503,7 +503,8 @@ class _Writer:
     def grad(self, expr, exclude, D) -> dict:
         """{state index: code} of d expr/dx through the symbols of ``expr`` not in ``exclude``."""
         acc: dict = {}
-        for w in expr.free_symbols - set(exclude):
+        # sorted: set order follows the hash seed, and the generated text must not
+        for w in sorted(expr.free_symbols - set(exclude), key=sp.default_sort_key):
             if w in self.index:
                 acc.setdefault(self.index[w], []).append(self.P(_diff(expr, w)))
             elif D.get(w):
@@ -511,7 +512,7 @@ class _Writer:
                 for j, name in D[w].items():
                     acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
                                                  else f"({self.P(d)})*{name}")
-        return {j: " + ".join(t) for j, t in acc.items()}
+        return {j: " + ".join(acc[j]) for j in sorted(acc)}
 
 
 def _affine_terms(expr):

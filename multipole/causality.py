@@ -273,6 +273,8 @@ class _Analyser:
         self.unknowns = list(dict.fromkeys(r for r, _ in self.aliases.values()))
         self.unknowns += [der(s.symbol) for s in self.states]
         self.demoted: list[State] = []
+        self.resolved: list = []        # (equations, algebraic unknowns, demoted states) per group
+        self.rates = None
 
     # -- matching ----------------------------------------------------------------------------------
     def match(self):
@@ -381,9 +383,14 @@ class _Analyser:
 
     @staticmethod
     def left_null(J, tol=1e-9):
+        """Orthonormal basis of ``{y: yᵀ·J = 0}``.  Columns are scaled to unit norm first (the left
+        null space does not change), so unknowns of different units (a charge and a force) do not
+        hide each other below the rank tolerance."""
         m, n = J.shape
         if n == 0:
             return np.eye(m)
+        norms = np.linalg.norm(J, axis=0)
+        J = J / np.where(norms > 0, norms, 1.0)
         U, s, _ = np.linalg.svd(J)
         r = int(np.sum(s > tol * max(s.max(initial=0.0), 1e-300)))
         return U[:, r:]
@@ -397,6 +404,7 @@ class _Analyser:
             groups = self.over_groups()
             if not groups:
                 break
+            self.rates = _Rates(self)
             progressed = False
             for eq_ids, alg in groups:
                 if self.resolve_group(eq_ids, alg):
@@ -450,11 +458,42 @@ class _Analyser:
             return False
         if W.shape[1] == 0 and self.locked(eq_ids, alg):
             return False
-        chosen = self.choose_demotions(eq_ids, alg, stvars, samples, rank_c)
+        ext_ids, ext_alg = self.with_earlier_groups(eq_ids, alg)
+        if len(ext_ids) > len(eq_ids):
+            present = set().union(*(self.equations[i].expr.free_symbols for i in ext_ids))
+            stvars = [s for s in state_syms if s in present]
+            samples = self.jacobians(ext_ids, ext_alg, stvars)
+        chosen = self.choose_demotions(ext_ids, ext_alg, stvars, samples, rank_c, self.rates)
         if self.errors():
             return False
         self.demote(eq_ids, chosen)
+        self.resolved.append((list(eq_ids), list(alg), list(chosen)))
         return True
+
+    def with_earlier_groups(self, eq_ids, alg):
+        """The group's equations and algebraic unknowns together with those of the groups resolved
+        before that share unknowns with it (transitively), whose demoted states are unknowns now.
+
+        A state demoted earlier is computed from that group's constraint, so the constraint this
+        group imposes on the remaining states is the one left after eliminating it: without this,
+        demoting the charges of an open piezo stack one group at a time leaves their sum (which
+        only the open terminal's zero current fixes) to no equation, a singular loop.
+        """
+        ids, unknowns = list(eq_ids), list(alg)
+        symbols = set().union(*(self.equations[i].expr.free_symbols for i in ids))
+        pending = list(self.resolved)
+        grown = True
+        while grown:
+            grown = False
+            for group in list(pending):
+                g_ids, g_alg, g_chosen = group
+                if symbols & (set(g_alg) | set(g_chosen)):
+                    pending.remove(group)
+                    ids += [i for i in g_ids if i not in ids]
+                    unknowns += [v for v in list(g_alg) + list(g_chosen) if v not in unknowns]
+                    symbols |= set().union(*(self.equations[i].expr.free_symbols for i in g_ids))
+                    grown = True
+        return ids, unknowns
 
     def locked(self, eq_ids, alg) -> bool:
         kin = [i for i in eq_ids if self.equations[i].role in ("constraint", "node")
@@ -477,18 +516,21 @@ class _Analyser:
             elements=sorted({self.flat.element_of(self.equations[i].owner) for i in kin}), path=path))
         return True
 
-    def choose_demotions(self, eq_ids, alg, stvars, samples, count):
+    def choose_demotions(self, eq_ids, alg, stvars, samples, count, rates=None):
         """Pick ``count`` states to demote, best conditioned along the expected motion first.
 
         At each sample point the constraint gradients ``C = Nᵀ·∂F/∂x`` are scaled consistently
         (the left null basis ``N`` is normalised on fixed reference equations), so a state whose
-        coefficient vanishes somewhere along the motion (a crank at its dead centre) scores low.
+        coefficient vanishes somewhere along the motion (a crank at its dead centre) scores low;
+        a state with no coefficient at all (the constraint does not determine it) is never chosen.
+        States whose rate is fixed by the rest of the network (see :class:`_Rates`) rank after all
+        others, then the ``prefer_state`` hint, then the score.
         """
         prefer = set(self.flat.prefer_state)
         nulls = [self.left_null(Ja) for Ja, _ in samples]
         d = min(N.shape[1] for N in nulls)
         ref = self.reference_rows(nulls, d)
-        mats = []
+        mats, floors = [], []
         for N, (_Ja, Js) in zip(nulls, samples):
             N = N[:, :d]
             try:
@@ -496,21 +538,30 @@ class _Analyser:
             except np.linalg.LinAlgError:
                 pass
             mats.append(N.T @ Js)
+            # a coefficient below rounding of the terms it combines is zero
+            floors.append(1e-9 * np.linalg.norm(N) * np.linalg.norm(Js, axis=0))
         chosen = []
         available = list(range(len(stvars)))
         for _ in range(count):
             best, best_score = None, -np.inf
+            free = rates.free() if rates is not None else None
             for j in reversed(available):     # ties: keep the earlier state, demote the later one
                 col = np.array([np.linalg.norm(M[:, j]) if M.size else 0.0 for M in mats])
-                score = col.min() / col.max() if col.max() > 0 else -np.inf
+                if not any(c > floor[j] for c, floor in zip(col, floors)):
+                    continue                  # the constraint does not determine this state
+                score = col.min() / col.max()
                 if stvars[j].name in prefer:
                     score -= 2.0
+                if free is not None and der(stvars[j]) not in free:
+                    score -= 4.0
                 if score > best_score + 1e-9:
                     best, best_score = j, score
             if best is None:
                 break
             chosen.append(stvars[best])
             available.remove(best)
+            if rates is not None:
+                rates.take(der(stvars[best]))
             new = []
             for M in mats:                  # eliminate the chosen state from the remaining constraints
                 if M.shape[0] == 0:
@@ -750,6 +801,63 @@ class _Analyser:
                     "unconnected_port",
                     f"{ext[0]} is not connected: {'free end (effort 0)' if node.domain.free_variable == 'e' else 'open (flow 0)'}",
                     elements=[ext[0].split('.')[0]], ports=ext))
+
+
+class _Rates:
+    """Which storage rates can still follow a constraint (Pantelides' criterion), for one round.
+
+    A demoted state's rate ``der(x)`` is computed from the differentiated constraint, so its state
+    equation must compute the storage's flow instead; that takes an alternating path of the
+    matching from an unknown no equation determines to ``der(x)``.  A rate that a source or an open
+    port fixes (the charge behind open electrodes) has no such path: demoting that state would let
+    it jump at t = 0 through a terminal that carries no current.  Demotions share the paths, so each
+    one taken (:meth:`take`) is flipped into a private copy of the matching: the charges of an open
+    stack can follow their voltage constraint only as long as some other charge absorbs the sum.
+    """
+
+    def __init__(self, analyser: "_Analyser"):
+        self.an = analyser
+        self.m_eq = dict(analyser.m_eq)
+        self.m_var = dict(analyser.m_var)
+        self.taken: set = set()
+        self._free = None
+
+    def _search(self):
+        """Breadth-first alternating search from the unknowns no equation determines (those taken
+        are spoken for); returns ``{unknown: (previous unknown, equation) or None}``."""
+        rev = self.an.equations_of()
+        start = [v for v in self.an.unknowns if v not in self.m_var and v not in self.taken]
+        parent = {v: None for v in start}
+        queue = deque(start)
+        while queue:
+            v = queue.popleft()
+            for i in rev.get(v, []):
+                w = self.m_eq.get(i)
+                if w is not None and w not in parent and w not in self.taken:
+                    parent[w] = (v, i)
+                    queue.append(w)
+        return parent
+
+    def free(self) -> set:
+        """Unknowns an alternating path can free, in the current private matching."""
+        if self._free is None:
+            self._free = self._search()
+        return set(self._free)
+
+    def take(self, rate) -> None:
+        """Reserve ``rate`` for a differentiated constraint: flip the path that frees it."""
+        parent = self._free if self._free is not None else self._search()
+        self._free = None
+        self.taken.add(rate)
+        if rate not in parent:
+            return
+        w = rate
+        del self.m_var[w]
+        while parent[w] is not None:        # equation i takes v; v's old equation is passed on
+            v, i = parent[w]
+            self.m_eq[i] = v
+            self.m_var[v] = i
+            w = v
 
 
 def analyse(flat: FlatNetwork) -> Analysis:

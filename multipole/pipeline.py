@@ -4,17 +4,18 @@ Each function takes a :class:`~multipole.netlist.Scene` and returns the object o
 Compiled models are cached in memory and on disk (``$MULTIPOLE_CACHE``, default
 ``~/.cache/multipole``) by the scene's digest (netlist text and overrides), the requested outputs
 and a hash of the kernel's and the element libraries' source, so a second ``simulate`` of an unchanged scene skips analysis
-and code generation.  ``MULTIPOLE_CACHE=off`` disables the disk cache.
+and code generation.  ``MULTIPOLE_CACHE=off`` disables the disk cache.  Disk entries are
+authenticated with the user's key and the folder must be private (:mod:`multipole.cache`).
 """
 from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from functools import lru_cache
 from pathlib import Path
 
+from . import cache
 from .causality import Analysis, analyse
 from .codegen import Model, compile_model
 from .equations import Equations, assemble
@@ -62,15 +63,16 @@ def model(scene: Scene, outputs=None) -> Model:
     key = (scene.digest, tuple(outputs) if outputs is not None else None)
     if key in _MODELS:
         return _MODELS[key]
-    path = _cache_path(key)
-    m = _restore(path)
+    slot = _cache_slot(key)
+    m = _restore(*slot) if slot is not None else None
     if m is None:
         start = time.perf_counter()
         eq = equations(scene)
         outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
         m = compile_model(eq, outs)
         m.compile_time = time.perf_counter() - start
-        _store(path, m)
+        if slot is not None:
+            _store(*slot, m)
     _MODELS[key] = m
     return m
 
@@ -94,35 +96,62 @@ def _code_hash() -> str:
 
 
 def _cache_path(key) -> Path | None:
-    root = os.environ.get("MULTIPOLE_CACHE", str(Path.home() / ".cache" / "multipole"))
-    if root.lower() in ("off", "0", "none", ""):
+    """Where the model for ``key`` is kept: ``<cache>/model-<digest>.entry`` (None: no disk cache)."""
+    folder = cache.root()
+    folder = cache.private_dir(folder) if folder is not None else None
+    if folder is None:
         return None
     digest = hashlib.sha256(repr((key, _code_hash())).encode()).hexdigest()
-    return Path(root) / f"model-{digest[:32]}.json"
+    return folder / f"model-{digest[:32]}.entry"
 
 
-def _restore(path) -> Model | None:
-    if path is None or not path.exists():
+def _cache_slot(key):
+    """``(path, user key)`` of the disk cache entry for ``key``, or None without a usable cache."""
+    path = _cache_path(key)
+    secret = cache.user_key(path.parent) if path is not None else None
+    return (path, secret) if secret is not None else None
+
+
+def _is_str_list(value) -> bool:
+    return isinstance(value, list) and all(isinstance(v, str) for v in value)
+
+
+def _valid_meta(meta) -> bool:
+    """True if ``meta`` has the shape :func:`~multipole.codegen.compile_model` writes."""
+    if not (isinstance(meta, dict) and isinstance(meta.get("name"), str) and _is_str_list(meta.get("state_names"))
+            and _is_str_list(meta.get("outputs")) and isinstance(meta.get("units"), dict)
+            and isinstance(meta.get("aliases"), dict) and isinstance(meta.get("x0"), list)):
+        return False
+    x0, units = meta["x0"], meta["units"]
+    return (len(x0) == len(meta["state_names"])
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in x0)
+            and all(isinstance(units.get(o, ""), str) for o in meta["outputs"])
+            and all(isinstance(a, str) and isinstance(r, list) and len(r) == 2 and isinstance(r[0], str)
+                    and r[1] in (1, -1) and not isinstance(r[1], bool) for a, r in meta["aliases"].items()))
+
+
+def _restore(path: Path, secret: bytes) -> Model | None:
+    """The model kept at ``path``, or None: an entry that is missing, fails its MAC (never
+    executed) or has a damaged payload of any shape is ignored and rewritten."""
+    payload = cache.read_entry(path, secret)
+    if payload is None:
         return None
     try:
-        data = json.loads(path.read_text())
-        m = Model(data["source"], data["meta"])
-    except (OSError, ValueError, KeyError, SyntaxError):
-        return None          # a damaged cache entry is ignored and rewritten
+        data = json.loads(payload.decode())
+        if not (isinstance(data, dict) and isinstance(data.get("source"), str) and _valid_meta(data.get("meta"))):
+            return None
+        m = Model(data["source"], data["meta"])      # authenticated: written by this user's multipole
+    except Exception:           # noqa: BLE001 -- whatever is wrong with an entry, it is rebuilt
+        return None
     m.cached = True
     return m
 
 
-def _store(path, m: Model) -> None:
-    if path is None:
-        return
+def _store(path: Path, secret: bytes, m: Model) -> None:
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"source": m.source, "meta": m.meta}))
-        tmp.replace(path)
+        cache.write_entry(path, secret, json.dumps({"source": m.source, "meta": m.meta}).encode())
     except OSError:
-        pass                 # a read-only home must not stop a simulation
+        pass                    # a full or read-only disk must not stop a simulation
 
 
 def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None, progress=None,

@@ -13,9 +13,11 @@ How a run goes:
    structure of the equations.
 2. *Compilation* — the source is written to ``$MULTIPOLE_CACHE/numba/m_<hash>.py`` (default
    ``~/.cache/multipole``; the hash covers the source, the kernels, numba and Python) and
-   imported; numba compiles the functions with ``cache=True``, so a later run of the same model,
-   in this or another process, loads their machine code from the ``__pycache__`` next to that
-   file.  The integrator loops of :mod:`multipole.backends.numba_kernels` do not depend on the
+   executed; numba compiles the functions with ``cache=True``, so a later run of the same model,
+   in this or another process, loads their machine code from numba's cache in the same folder
+   (whatever ``NUMBA_CACHE_DIR`` says).  The folder must be private, else (and with
+   ``MULTIPOLE_CACHE=off``) a private folder of the process is used (see :func:`cache_dir`).
+   The integrator loops of :mod:`multipole.backends.numba_kernels` do not depend on the
    model (they call it through function addresses): they are compiled once per installation and
    kept in numba's cache.
 3. *Run* — the compiled loop integrates from 0 to ``t_end``, fills the ``dt_out`` grid from the
@@ -36,11 +38,11 @@ Models numba cannot compile run on the ``numpy`` backend, with the reason in ``s
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import os
 import sys
-import tempfile
 import time
+import types
+from contextlib import contextmanager
 from pathlib import Path
 
 import numba
@@ -48,7 +50,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
-from .. import codegen
+from .. import cache, codegen
 from ..simulate import Result, SimulationError, _Progress, choose_solver
 from . import numba_kernels as K
 from . import register_backend
@@ -341,31 +343,47 @@ _LOADED: dict = {}
 
 
 def cache_dir() -> Path:
-    """Where generated modules and numba's machine code are kept (``$MULTIPOLE_CACHE/numba``)."""
-    root = os.environ.get("MULTIPOLE_CACHE", str(Path.home() / ".cache" / "multipole"))
-    if root.lower() in ("off", "0", "none", ""):
-        return Path(tempfile.gettempdir()) / f"multipole-numba-{os.getuid() if hasattr(os, 'getuid') else 0}"
-    return Path(root) / "numba"
+    """Where generated modules and numba's machine code for them are kept: ``$MULTIPOLE_CACHE/numba``
+    if that folder is private (:func:`multipole.cache.private_dir`), else (and with
+    ``MULTIPOLE_CACHE=off``) a private folder of this process, removed at exit."""
+    root = cache.root()
+    folder = cache.private_dir(root / "numba") if root is not None else None
+    return folder if folder is not None else cache.process_dir()
+
+
+@contextmanager
+def _numba_cache_in(folder: Path):
+    """numba's cache locator for the functions decorated meanwhile is ``folder`` (whatever
+    ``NUMBA_CACHE_DIR`` says): numba picks the folder when a function is decorated and loads its
+    pickled index from there, so it must be the folder :func:`cache_dir` checked."""
+    from numba.core import config
+    saved = config.CACHE_DIR
+    config.CACHE_DIR = str(folder)
+    try:
+        yield
+    finally:
+        config.CACHE_DIR = saved
 
 
 def load(source: str):
     """Import the generated module (written once per source hash): numba compiles its cfuncs, or
-    loads them from its cache, as the module is imported."""
+    loads them from its cache, as the module is executed.  The module runs from ``source`` itself,
+    never from a file or a ``.pyc`` found on disk."""
     key = hashlib.sha256(source.encode()).hexdigest()[:24]
     if key in _LOADED:
         return _LOADED[key]
     folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"m_{key}.py"
-    if not path.exists() or path.read_text() != source:
+    if not path.is_file() or path.read_text() != source:
         tmp = folder / f".m_{key}.{os.getpid()}.tmp"
         tmp.write_text(source)
-        tmp.replace(path)      # atomic: parallel runs never import a half-written file
+        tmp.replace(path)      # atomic: parallel runs never read a half-written file
     name = f"_multipole_numba_{key}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
+    module = types.ModuleType(name)
+    module.__file__ = str(path)          # numba's cache is keyed by this file (and its content hash)
     sys.modules[name] = module
-    spec.loader.exec_module(module)
+    with _numba_cache_in(folder):
+        exec(compile(source, str(path), "exec"), module.__dict__)
     _LOADED[key] = module
     return module
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import networkx as nx
+import numpy as np
 import sympy as sp
 from sympy.solvers.solveset import NonlinearError
 
@@ -43,6 +44,7 @@ class Block:
     notes: list
     matrix: sp.Matrix | None = None   # numeric linear blocks: A z = b
     rhs: sp.Matrix | None = None
+    torn: list = field(default_factory=list)   # newton blocks: loop variables torn out, explicit after it
 
 
 @dataclass
@@ -269,14 +271,16 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         A, b = _solve_linear(res, zs)
         if A is None:
             kept, torn = _tear(res, zs, owners, notes, analysis.flat.param_values())
-            blocks.append(Block("newton", *kept))
+            blocks.append(Block("newton", *kept, torn=[t[0] for t in torn]))
             blocks += [Block("explicit", [z], [sol], [r], [o], [n]) for z, sol, r, o, n in reversed(torn)]
             diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res, kept[0]))
             continue
         numeric = A.xreplace(analysis.flat.param_values())
         if not any(x.free_symbols for x in numeric) and sp.Matrix(numeric).det() == 0:
-            raise IllPosedError("singular_loop", "the algebraic loop for " + ", ".join(map(str, zs))
+            err = IllPosedError("singular_loop", "the algebraic loop for " + ", ".join(map(str, zs))
                                 + " is singular", "check the couplings of " + ", ".join(sorted(set(owners))))
+            err.variables, err.owners = zs, owners      # for the check's wording (multipole.checks)
+            raise err
         derivative = any(eqs[i].role == "differentiated" for i in members)
         if len(zs) <= SYMBOLIC_LIMIT:
             sol = A.LUsolve(b)
@@ -288,8 +292,108 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res))
     states = analysis.states
     available, units = _available(analysis)
-    return Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
-                     analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
+    eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
+                   analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
+    if analysis.demoted:
+        report = _consistent_start(eq, analysis.demoted)
+        if report is not None:
+            diagnostics.append(report)
+    return eq
+
+
+def evaluate_blocks(eq: Equations, t: float, x, wanted) -> dict:
+    """Numeric values of the variables ``wanted`` at time ``t`` and integrated states ``x``, each as
+    ``(value, magnitude)``: the magnitude is the size of the terms the value was computed from
+    (sums of absolute values), a scale for its rounding error.
+
+    Only the blocks ``wanted`` depends on are evaluated, in order: explicit and symbolic linear
+    blocks by substitution, numeric linear ones by a dense solve, nonlinear ones by Newton's method
+    (scipy) started from zero.  Raises ``ArithmeticError`` if a value is not a finite real number.
+    """
+    values = {p: float(v) for p, v in eq.params.items()}
+    values[T] = float(t)
+    values.update({s.symbol: float(v) for s, v in zip(eq.states, x)})
+    for u, e in eq.inputs.items():
+        values[u] = _real(sp.sympify(e).xreplace(values))
+    mags = {k: abs(v) for k, v in values.items()}
+    needed = set(wanted)
+    todo = []
+    for b in reversed(eq.blocks):
+        if needed & set(b.variables):
+            todo.append(b)
+            needed |= set().union(*(sp.sympify(r).free_symbols for r in b.residuals))
+    for b in reversed(todo):
+        if b.solution is not None:
+            for v, sol in zip(b.variables, b.solution):
+                values[v] = _real(sp.sympify(sol).xreplace(values))
+                mags[v] = _magnitude(sp.sympify(sol), mags)
+        elif b.kind == "linear":
+            A = np.array(b.matrix.xreplace(values).evalf(), dtype=float)
+            rhs = np.array(b.rhs.xreplace(values).evalf(), dtype=float).ravel()
+            z = np.linalg.solve(A, rhs)
+            size = np.abs(np.linalg.inv(A)) @ (np.abs(A) @ np.abs(z) + np.abs(rhs))
+            values.update(zip(b.variables, (float(v) for v in z)))
+            mags.update(zip(b.variables, (float(v) for v in size)))
+        else:
+            from scipy.optimize import fsolve
+            res = [sp.sympify(r).xreplace(values) for r in b.residuals]
+            fun = sp.lambdify([b.variables], res, "numpy")
+            jac = sp.lambdify([b.variables], sp.Matrix(res).jacobian(b.variables), "numpy")
+            z, _info, ok, _msg = fsolve(lambda z: np.asarray(fun(z), dtype=float), np.zeros(len(b.variables)),
+                                        fprime=lambda z: np.asarray(jac(z), dtype=float), full_output=True)
+            if ok != 1:
+                raise ArithmeticError(f"Newton did not converge for {', '.join(map(str, b.variables))}")
+            values.update(zip(b.variables, (float(v) for v in z)))
+            mags.update(zip(b.variables, (abs(float(v)) for v in z)))
+    return {v: (values[v], mags[v]) for v in wanted}
+
+
+def _real(expr) -> float:
+    value = complex(sp.sympify(expr).evalf())
+    if value.imag != 0 or not np.isfinite(value.real):
+        raise ArithmeticError(f"not a finite real number: {expr}")
+    return value.real
+
+
+def _magnitude(expr, mags) -> float:
+    """``expr`` evaluated with every sum replaced by the sum of its terms' absolute values."""
+    if expr.is_Symbol:
+        return mags.get(expr, 0.0)
+    if expr.is_Number:
+        return abs(float(expr))
+    args = [_magnitude(a, mags) for a in expr.args]
+    if expr.is_Add:
+        return sum(args)
+    if expr.is_Mul:
+        return float(np.prod(args))
+    if expr.is_Pow and expr.exp.is_Number:
+        base = args[0]
+        return base ** float(expr.exp) if base > 0 or float(expr.exp) > 0 else 0.0
+    return abs(_real(expr.xreplace({s: sp.Float(m) for s, m in mags.items() if s in expr.free_symbols})))
+
+
+def _consistent_start(eq: Equations, demoted) -> Diagnostic | None:
+    """Compare the initial values given for the states in derivative causality with the values
+    the rigid couplings impose at t = 0 (computed from the constraints, given the integrated states
+    and the inputs at t = 0); an info diagnostic lists the ones that differ (they start at the
+    consistent value), None if all agree or the values cannot be computed."""
+    try:
+        got = evaluate_blocks(eq, 0.0, eq.initial_values(), [s.symbol for s in demoted])
+    except (ArithmeticError, TypeError, ValueError, np.linalg.LinAlgError):
+        return None
+    vals = {p: v for p, v in eq.params.items()}
+    changed = []
+    for s in demoted:
+        given = float(sp.sympify(s.initial).xreplace(vals))
+        value, size = got[s.symbol]
+        if abs(value - given) > 1e-9 * max(size, abs(given)):
+            changed.append((s, value, given))
+    if not changed:
+        return None
+    elements = sorted({eq.analysis.flat.element_of(s.owner) for s, _, _ in changed})
+    listing = ", ".join(f"{s.name} = {v:.6g} {s.unit} (given {g:.6g})" for s, v, g in changed)
+    return Diagnostic("derivative_causality", "initial values made consistent with the rigid couplings at "
+                      f"t = 0: {listing}; the simulation starts there", elements=elements)
 
 
 def _tear(res, zs, owners, notes, values):

@@ -243,6 +243,47 @@ def test_stack_equals_lumped_element():
         assert np.max(np.abs(stack[out] - lumped[out])) <= 1e-6 * scale, out
 
 
+@pytest.mark.parametrize("kind,n,r", [("element", 1, 0), ("element", 1, R_EL), ("stack", 2, 0), ("stack", 3, R_EL),
+                                       ("stack", 4, 0)])
+def test_open_circuit_force_present_from_the_start(kind, n, r):
+    """Massless sensor, electrodes open, the force F acting from t = 0 (no ramp): no current can
+    flow, so the charge stays 0 and the extension, not the charge, takes the value the constraint
+    imposes at t = 0: U = −k_P·F/C_P and s = n·(delta_P − k_P²/C_P)·F at every output time, current 0.
+    The analyser says which initial values it made consistent: the extensions, never a charge."""
+    text = piezo_scene(kind, n, "open", "force", m=0, r=r, t_end=1e-6, dt=1e-7)
+    an = check(text)
+    eq = pipeline.equations(scene(text), an)
+    made = [d.message for d in eq.diagnostics if d.code == "derivative_causality" and "consistent" in d.message]
+    assert len(made) == 1 and ".q1 = 2.5e-09 m (given 0)" in made[0] and ".q2" not in made[0], made
+    res = run(text)
+    assert np.allclose(res["piezo.voltage"], -K_P * F / C_P, rtol=1e-9, atol=0)
+    assert np.allclose(res["piezo.stroke"], n * DELTA_OPEN * F, rtol=1e-9, atol=0)
+    assert np.max(np.abs(res["piezo.charge"])) <= 1e-9 * n * K_P * F
+    assert np.max(np.abs(res["piezo.current"])) == 0.0
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4])
+def test_open_ideal_stack_under_a_force_step_equals_the_lumped_element(n):
+    """Massless ideal stack (m = 0, R = 0), electrodes open, load mass M, force step F: the state
+    choice must keep one charge integrated (their sum is what the open terminal conserves).  The
+    stack behaves like one element (n·k_P, n·delta_P, n·C_P) and both like a spring of compliance
+    n·(delta_P − k_P²/C_P) under M: s = n·delta_open·F·(1 − cos ωt), ω² = 1/(n·delta_open·M), and
+    U = −k_P·T/C_P with the tension T = F − M·s̈ = F·(1 − cos ωt) (Q = 0 in (50))."""
+    M = 0.1
+    common = dict(elec="open", tip="mass", f="F*step(t)", m=0, r=0, load=M, t_end=6e-5, dt=2e-8)
+    stack = run(piezo_scene("stack", n, **common))
+    lumped = run(piezo_scene("element", 1, k=n * K_P, delta=n * DELTA_P, c=n * C_P, **common))
+    w = np.sqrt(1.0 / (n * DELTA_OPEN * M))
+    t = stack.t
+    closed = {"piezo.stroke": n * DELTA_OPEN * F * (1 - np.cos(w * t)),
+              "piezo.voltage": -K_P * F * (1 - np.cos(w * t)) / C_P}
+    for out, expected in closed.items():
+        scale = np.abs(expected).max()
+        assert np.max(np.abs(stack[out] - expected)) <= 1e-6 * scale, out
+        assert np.max(np.abs(stack[out] - lumped[out])) <= 1e-6 * scale, out
+    assert np.max(np.abs(stack["piezo.charge"])) <= 1e-9 * n * K_P * F
+
+
 @pytest.mark.parametrize("m,r,tip,states", [
     (M_TIP, R_EL, "free", 12),        # 4 elements × (extension, charge, tip momentum)
     (0, R_EL, "mass", 4 + 2),         # series compliances share one force: n-1 extensions resolved

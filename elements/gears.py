@@ -319,7 +319,7 @@ def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None, z1=
             children[f"shaft{k}"] = inertia(J[k - 1])
             connections += [[f"s{k}.b", f"shaft{k}.a"], [f"shaft{k}.b", f"s{k + 1}.a"]]
     sense = 1 if internal else -1
-    ratio = math.prod(-sense * b / a for a, b in zip(r1, r2))
+    ratio = math.prod(sense * b / a for a, b in zip(r1, r2))   # stage ratio -r2/r1, internal +r2/r1
     return Network("gear_train", children, connections, {"a": "s1.a", "b": f"s{n}.b"},
                    quantities={"ratio": Quantity(lambda V: sp.Float(ratio), "-", "overall ratio omega_a/omega_b")},
                    doc=f"{n}-stage gear train")

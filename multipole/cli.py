@@ -1,20 +1,27 @@
 """The ``multipole`` command (DESIGN §6).
 
-Exit codes: 0 well-posed / success, 1 structural problems found by the check, 2 invalid input.
-Errors are printed as one line without a traceback.
+Exit codes (docs/cli.md): 0 well-posed / success, 1 structural problems found by the check (in
+every verb), 2 invalid input or options, 3 a run-time failure of a well-posed model, 130
+interrupted (Ctrl-C).  Errors are printed as one line without a traceback; the code comes from
+the error's class (``MultipoleError.exit_code``), mapped in one place, :func:`main`.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from . import pipeline
 from .catalogue import catalogue
-from .errors import IllPosedError, MultipoleError
+from .errors import IllPosedError, MultipoleError, MultipoleWarning, RunError
 from .netlist import load
+
+#: exit status after Ctrl-C (128 + SIGINT, as shells report it)
+EXIT_INTERRUPTED = 130
 
 
 def _overrides(items) -> dict:
@@ -31,13 +38,6 @@ def cmd_check(args) -> int:
     scene = load(args.file, _overrides(args.set))
     analysis = pipeline.check(scene)
     code = 0 if analysis.ok else 1
-    if analysis.ok:
-        try:                      # loops found while assembling belong to the report too
-            analysis.diagnostics += [d for d in pipeline.equations(scene, analysis).diagnostics]
-        except IllPosedError as exc:
-            from .diagnostics import Diagnostic
-            analysis.diagnostics.append(Diagnostic("singular_loop", exc.message, exc.fix))
-            code = 1
     if args.json:
         print(json.dumps({"file": args.file, "scene": scene.name, "exit_code": code, "well_posed": code == 0,
                           "states": [s.name for s in analysis.states],
@@ -48,8 +48,9 @@ def cmd_check(args) -> int:
         for d in analysis.diagnostics:
             print("  " + str(d).replace("\n", "\n  "))
         n_err = len([d for d in analysis.diagnostics if d.severity == "error"])
+        n_warn = len([d for d in analysis.diagnostics if d.severity == "warning"])
         print(f"{'well-posed' if code == 0 else 'NOT well-posed'}: {n_err} error(s), "
-              f"{len(analysis.states)} state(s)")
+              + (f"{n_warn} warning(s), " if n_warn else "") + f"{len(analysis.states)} state(s)")
     return code
 
 
@@ -68,15 +69,23 @@ def cmd_equations(args) -> int:
     return 0
 
 
-#: figure formats ``--plot`` and ``diagram -o`` accept (matplotlib writes them without extra packages)
+#: figure formats ``--plot``, ``--bode`` and ``diagram -o`` accept (matplotlib writes them without
+#: extra packages)
 FIGURE_FORMATS = (".png", ".svg", ".pdf")
+
+#: what ``simulate --out`` writes: comma-separated values, a header row ``t,<outputs>``
+RESULT_FORMATS = (".csv",)
 
 
 def check_output_path(path: str | None, formats=None, option: str = "--out") -> None:
-    """Refuse, before any work is done, an output file that cannot be written."""
+    """Refuse, before any work is done, an output file that cannot be written: an unsupported
+    suffix, a folder, a missing or read-only folder, a read-only existing file."""
     if not path:
         return
     target = Path(path)
+    if target.is_dir():
+        raise MultipoleError("bad_output", f"{option} {path}: is a folder, not a file",
+                             f"give a file name such as {target / ('results' + (formats or ('.csv',))[0])}")
     if formats and target.suffix.lower() not in formats:
         raise MultipoleError("bad_output", f"{option} {path}: unsupported file type {target.suffix or '(none)'!r}",
                              f"use one of {', '.join(formats)}")
@@ -84,10 +93,36 @@ def check_output_path(path: str | None, formats=None, option: str = "--out") -> 
     if not folder.is_dir():
         raise MultipoleError("bad_output", f"{option} {path}: folder {str(folder)!r} does not exist",
                              "create it first or write elsewhere")
+    if not os.access(folder, os.W_OK | os.X_OK) or (target.exists() and not os.access(target, os.W_OK)):
+        raise MultipoleError("bad_output", f"{option} {path}: not writable (permission denied)",
+                             "write elsewhere or fix the permissions")
+
+
+def _check_numbers(args) -> None:
+    """Refuse bad numbers given on the command line before any work: ``--t-end``, ``--dt-out``,
+    ``--atol`` must be positive and finite, ``--rtol`` in (0, 1)."""
+    for option, value in (("--t-end", args.t_end), ("--dt-out", args.dt_out), ("--rtol", args.rtol),
+                          ("--atol", args.atol)):
+        if value is None:
+            continue
+        if not math.isfinite(value) or value <= 0 or (option == "--rtol" and value >= 1):
+            wanted = "between 0 and 1, e.g. 1e-6" if option == "--rtol" else "a positive finite number"
+            raise MultipoleError("bad_option", f"{option} {value:g}: must be {wanted}",
+                                 f"e.g. {option} {dict(rtol=1e-6, atol=1e-9).get(option[2:], 0.01):g}")
+
+
+def _located(exc: MultipoleError, scene) -> MultipoleError:
+    """``exc`` with ``where`` set to the scene file (and the line of the element a run-time error
+    names); errors that already say where they are keep it."""
+    element = getattr(exc, "element", None)
+    if isinstance(exc, RunError) or not exc.where:
+        exc.where = scene.where(element=element) if element in scene.element_lines else scene.path
+    return exc
 
 
 def cmd_simulate(args) -> int:
-    check_output_path(args.out, None, "--out")
+    _check_numbers(args)
+    check_output_path(args.out, RESULT_FORMATS, "--out")
     check_output_path(args.plot, FIGURE_FORMATS, "--plot")
     scene = load(args.file, _overrides(args.set))
     try:
@@ -98,15 +133,33 @@ def cmd_simulate(args) -> int:
         for d in analysis.errors:
             print("  " + str(d).replace("\n", "\n  "), file=sys.stderr)
         return 1
-    result = pipeline.run(scene, args.t_end, args.dt_out, args.solver, args.rtol, args.atol,
-                          progress=False if args.quiet else None, backend=args.backend)
+    try:
+        result = pipeline.run(scene, args.t_end, args.dt_out, args.solver, args.rtol, args.atol,
+                              progress=False if args.quiet else None, backend=args.backend)
+    except MultipoleError as exc:
+        raise _located(exc, scene) from None
+    except KeyboardInterrupt as exc:        # results so far are discarded: no file looks complete
+        t = getattr(exc, "t", None)
+        at = f" at t = {t:.6g} s" if t is not None else ""
+        print(f"{args.file}: interrupted{at}; the results so far are discarded, no file written", file=sys.stderr)
+        return EXIT_INTERRUPTED
     print(f"{scene.name}: {result.summary()}")
-    if args.out:
-        result.to_csv(args.out)
-        print(f"wrote {args.out}")
-    if args.plot:
-        result.plot(args.plot, title=f"{scene.name}: {scene.description}"[:100])
-        print(f"wrote {args.plot}")
+    for note in result.stats.get("warnings", []):
+        print(f"multipole: warning: during the run: {note}", file=sys.stderr)
+    written = []
+    try:
+        if args.out:
+            result.to_csv(args.out)
+            written.append(args.out)
+            print(f"wrote {args.out}")
+        if args.plot:
+            result.plot(args.plot, title=f"{scene.name}: {scene.description}"[:100])
+            written.append(args.plot)
+            print(f"wrote {args.plot}")
+    except KeyboardInterrupt:
+        print(f"{args.file}: interrupted while writing; " + (f"kept {', '.join(written)}, " if written else "")
+              + "nothing else written", file=sys.stderr)
+        return EXIT_INTERRUPTED
     if not args.out and not args.plot:
         names = list(result.outputs)
         print("final values: " + ", ".join(f"{n} = {result.outputs[n][-1]:.6g}" for n in names))
@@ -145,8 +198,31 @@ def _lazy(module: str, name: str):
     return run
 
 
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+        return version("multipole")
+    except Exception:                    # not installed as a distribution: the source's own number
+        from . import __version__
+        return __version__
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """The project's warnings as one line on stderr; others as Python prints them."""
+    if issubclass(category, MultipoleWarning):
+        print(f"multipole: warning: {message}", file=sys.stderr)
+    else:
+        _python_show_warning(message, category, filename, lineno, file, line)
+
+
+_python_show_warning = warnings.showwarning
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="multipole", description="Weber multipole simulator for drive systems")
+    parser = argparse.ArgumentParser(prog="multipole", description="Weber multipole simulator for drive systems",
+                                     epilog="exit codes: 0 ok, 1 structural problems, 2 invalid input or options, "
+                                            "3 run-time failure, 130 interrupted (docs/cli.md)")
+    parser.add_argument("--version", action="version", version=f"multipole {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("check", help="causality analysis: exit 0 well-posed, 1 structural problems, 2 invalid file")
     p.add_argument("file")
@@ -167,14 +243,14 @@ def main(argv=None) -> int:
     p.add_argument("--solver", help="auto, RK45, DOP853, Radau, BDF, LSODA, RK23")
     p.add_argument("--rtol", type=float)
     p.add_argument("--atol", type=float)
-    p.add_argument("--out", help="results CSV")
+    p.add_argument("--out", help="results CSV (.csv)")
     p.add_argument("--plot", help="figure (png, svg, pdf)")
     p.add_argument("--backend", help="numpy (default) or a compiled backend, see docs/performance.md")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_simulate)
     p = sub.add_parser("diagram", help="Weber-style block diagram with the causality found by the check")
     p.add_argument("file")
-    p.add_argument("-o", "--output", required=True, help="figure.png or figure.svg")
+    p.add_argument("-o", "--output", required=True, help="figure (png, svg, pdf)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE")
     p.set_defaults(func=_lazy("diagram", "cmd_diagram"))
     p = sub.add_parser("linearize", help="linear state-space model (python-control), eigenfrequencies, Bode plot")
@@ -193,21 +269,34 @@ def main(argv=None) -> int:
     p.add_argument("--markdown", action="store_true", help="the whole catalogue as a markdown reference")
     p.set_defaults(func=cmd_elements)
     args = parser.parse_args(argv)
+    shown = warnings.showwarning
+    warnings.showwarning = _show_warning
     try:
         return args.func(args)
     except BrokenPipeError:              # output piped into `head` and the like: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except (MultipoleError, OSError) as exc:
+    except KeyboardInterrupt:
+        print(f"multipole {args.command}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (MultipoleError, OSError, MemoryError, ArithmeticError) as exc:
         if isinstance(exc, OSError):     # a file we were asked to read or write
             exc = MultipoleError("io", f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": "),
                                  "check the path and its permissions")
+        elif isinstance(exc, MemoryError):
+            exc = RunError("out_of_memory", f"not enough memory for {args.command}",
+                           "a smaller model, a coarser output grid or a shorter horizon", getattr(args, "file", ""))
+        elif not isinstance(exc, MultipoleError):   # arithmetic outside the simulation loop
+            exc = RunError("arithmetic_error", f"{args.command} failed: {type(exc).__name__}: {exc}",
+                           "check the expressions and parameters", getattr(args, "file", ""))
         if getattr(args, "json", False):
-            print(json.dumps({"file": args.file, "exit_code": 2, "well_posed": False,
+            print(json.dumps({"file": args.file, "exit_code": exc.exit_code, "well_posed": False,
                               "error": {"code": exc.code, "message": exc.message, "where": exc.where,
                                         "fix": exc.fix}}, indent=2))
         print(str(exc), file=sys.stderr)
-        return 2
+        return exc.exit_code
+    finally:
+        warnings.showwarning = shown
 
 
 if __name__ == "__main__":

@@ -31,7 +31,6 @@ from pathlib import Path
 import sympy as sp
 
 from .causality import Analysis, _alias_pair
-from .errors import MultipoleError
 from .network import var
 from .primitives import T
 
@@ -1943,23 +1942,20 @@ def render(diagram: Diagram, path) -> None:
 # command
 
 def cmd_diagram(args) -> int:
-    """``multipole diagram FILE -o figure.png|svg``: exit 0 well-posed, 1 not well-posed (the
+    """``multipole diagram FILE -o figure.png|svg|pdf``: exit 0 well-posed, 1 not well-posed (the
     figure is still written, conflicts in red); bad input raises :class:`MultipoleError`."""
     from . import pipeline
-    from .cli import _overrides
+    from .cli import FIGURE_FORMATS, _overrides, check_output_path
+    from .files import atomic_output
     from .netlist import load
 
+    check_output_path(args.output, FIGURE_FORMATS, "-o")
     out = Path(args.output)
-    if out.suffix.lower() not in (".png", ".svg"):
-        raise MultipoleError("bad_output", f"cannot write a diagram to {args.output!r}",
-                             "give a file name ending in .png or .svg")
-    if not out.parent.exists():
-        raise MultipoleError("bad_output", f"directory {str(out.parent)!r} does not exist",
-                             "create it or write the figure elsewhere")
     scene = load(args.file, _overrides(args.set))
     analysis = pipeline.check(scene)
     diagram = layout(analysis, scene.element_types, f"{scene.name}: Weber block diagram", scene.description)
-    render(diagram, out)
+    with atomic_output(out) as tmp:        # an interrupted write leaves no short figure behind
+        render(diagram, tmp)
     print(f"wrote {out}" + ("" if analysis.ok else f" ({len(analysis.errors)} conflict(s) in red)"))
     return 0 if analysis.ok else 1
 

@@ -2,13 +2,21 @@
 
 Every error carries a short machine-readable ``code``, a one-line ``message`` that names the
 file, line and element where known, and a suggested ``fix``.  The CLI prints ``str(error)``
-without a traceback and exits with status 2.
+as one line without a traceback and exits with the class's ``exit_code``:
+
+* 1 -- structural problems found by the check (:class:`IllPosedError`),
+* 2 -- invalid input or options (:class:`NetlistError`, :class:`ModelError`, the base class),
+* 3 -- a well-posed model that failed while running (:class:`RunError`: Newton failure,
+  non-finite state or output, failed step, arithmetic error in the model, not enough memory).
 """
 from __future__ import annotations
 
 
 class MultipoleError(Exception):
     """Base class: an invalid model or netlist (CLI exit code 2)."""
+
+    #: the status the ``multipole`` command exits with when this error ends it
+    exit_code = 2
 
     def __init__(self, code: str, message: str, fix: str = "", where: str = ""):
         self.code = code
@@ -35,6 +43,35 @@ class ModelError(MultipoleError):
 class IllPosedError(MultipoleError):
     """A structurally ill-posed network asked to produce equations (see ``multipole check``)."""
 
+    exit_code = 1
 
-class NewtonError(ArithmeticError):
-    """Newton's method did not converge in an algebraic loop (at one evaluation of the model)."""
+
+class RunError(MultipoleError):
+    """A well-posed model that failed while running (CLI exit code 3): the message names the
+    element and the time [s] where known."""
+
+    exit_code = 3
+
+
+class NewtonError(RunError, ArithmeticError):
+    """Newton's method did not converge in an algebraic loop (at one evaluation of the model).
+
+    A run-time error (exit code 3); also an ``ArithmeticError``, so code that treats a failed
+    evaluation of the model as arithmetic (the solver choice, the step loop) handles it alike."""
+
+    def __init__(self, message: str, fix: str = "check the loop's laws and parameters for a state where "
+                 "they have no solution", where: str = ""):
+        super().__init__("newton_failed", message, fix, where)
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C during a run; ``t`` is the simulated time reached [s] (None if not known)."""
+
+    def __init__(self, t: float | None = None):
+        self.t = t
+        super().__init__(f"interrupted at t = {t:.6g} s" if t is not None else "interrupted")
+
+
+class MultipoleWarning(UserWarning):
+    """Something the user should know before (or after) a run that still goes ahead; the CLI
+    prints it as one ``multipole: warning:`` line on stderr."""

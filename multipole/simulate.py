@@ -17,24 +17,47 @@ tolerances, RK45 otherwise); the reason is kept in ``Result.solver_reason``.
 """
 from __future__ import annotations
 
+import ast
+import functools
+import math
+import re
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, Radau
 from scipy.optimize import brentq
 
-from .errors import MultipoleError, NewtonError
-from .solvers import GL4
-
-SOLVERS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA, "GL4": GL4}
+from .errors import Interrupted, MultipoleError, MultipoleWarning, NewtonError, RunError
+from .files import atomic_output
+from .solvers import SOLVERS
 IMPLICIT = {"Radau", "BDF", "LSODA", "GL4"}
 _STAGES = {"RK45": 6, "RK23": 3, "DOP853": 12}
 
 
-class SimulationError(MultipoleError):
-    """The integration failed (the message says where and why)."""
+class SimulationError(RunError):
+    """The integration failed (exit code 3; the message says where, when and why).
+
+    ``element`` is the user's element responsible where known (the CLI then names its file:line)."""
+
+    element: str | None = None
+
+
+def _failed(model, code: str, message: str, fix: str = "", element: str | None = None) -> SimulationError:
+    """A :class:`SimulationError` located at ``element`` (else at the model)."""
+    err = SimulationError(code, message, fix, f"element '{element}'" if element else model.name)
+    err.element = element
+    return err
+
+
+#: Most rows an output grid may have (``t_end/dt_out + 1``); a longer grid is refused before
+#: anything is allocated.  10 million rows of a few columns are a few hundred MB.
+MAX_OUTPUT_ROWS = 10_000_000
+
+#: A run that the stiffness estimate says needs more integration steps than this is warned about
+#: before it starts (at some µs per step, 1e8 steps take minutes to hours).
+MANY_STEPS = 1e8
 
 
 @dataclass
@@ -62,12 +85,14 @@ class Result:
         """CSV: ``t`` then one column per output (DESIGN §6)."""
         names = list(self.outputs)
         data = np.column_stack([self.t] + [self.outputs[n] for n in names])
-        np.savetxt(path, data, delimiter=",", header=",".join(["t"] + names), comments="", fmt="%.12g")
+        with atomic_output(path) as tmp:     # an interrupted write leaves no short file behind
+            np.savetxt(tmp, data, delimiter=",", header=",".join(["t"] + names), comments="", fmt="%.12g")
 
     def summary(self) -> str:
         s = self.stats
         parts = [f"solver {self.solver} ({self.solver_reason})",
-                 f"steps {s.get('steps', 0)}", f"rejected {s.get('rejected', 'n/a')}",
+                 f"steps {s.get('steps', 0)}",
+                 f"rejected {s['rejected'] if s.get('rejected') is not None else 'n/a'}",
                  f"nfev {s.get('nfev', 0)}", f"njev {s.get('njev', 0)}", f"nlu {s.get('nlu', 0)}",
                  f"events {len(self.events)}", f"wall {s.get('wall_time', 0):.3g} s"]
         if s.get("model_cached"):
@@ -79,9 +104,8 @@ class Result:
         return ", ".join(parts)
 
     def plot(self, path=None, title: str = ""):
-        """One panel per output over time; saved to ``path`` when given. Returns the figure."""
-        import matplotlib
-        matplotlib.use("Agg")
+        """One panel per output over time; saved to ``path`` when given (written atomically).
+        Returns the figure."""
         import matplotlib.pyplot as plt
         names = list(self.outputs) or self.state_names
         n = len(names)
@@ -99,7 +123,8 @@ class Result:
         fig.text(0.99, 0.005, self.summary(), ha="right", va="bottom", fontsize=6, color="0.35")
         fig.tight_layout(rect=(0, 0.02, 1, 1))
         if path:
-            fig.savefig(path, dpi=120)
+            with atomic_output(path) as tmp:
+                fig.savefig(tmp, dpi=120, format=str(path).rsplit(".", 1)[-1].lower())
             plt.close(fig)
         return fig
 
@@ -126,48 +151,398 @@ class _Progress:
             sys.stderr.write("\n")
 
 
-def choose_solver(model, t_end: float, rtol: float) -> tuple[str, str]:
-    """Pick a solver from the Jacobian's eigenvalues at the initial state."""
-    if len(model.x0) == 0:
-        return "RK45", "no states"
-    try:
-        lam = np.linalg.eigvals(model.jac(0.0, model.x0))
-    except (ArithmeticError, np.linalg.LinAlgError, ValueError):
-        return "Radau", "Jacobian not available at t=0; implicit to be safe"
+#: Up to this many states ``auto`` takes every eigenvalue of the dense Jacobian (``eigvals`` is
+#: O(n³): 0.02 s at 200 states, 34 s at 2000); above, an Arnoldi estimate of the extreme ones.
+EXACT_EIGEN_STATES = 200
+#: Krylov dimension of that estimate: this many products with the Jacobian, O(nnz) each.
+KRYLOV_DIM = 40
+#: Up to this many states the estimate multiplies with the generated Jacobian (one evaluation, kept
+#: as a sparse matrix); above, with directional differences of the right-hand side, so that no
+#: n×n array is made (20,000 states would be 3.2 GB).
+DENSE_JACOBIAN_STATES = 4000
+#: Time scales closer than this are one time scale: a model is not stiff below this ratio of its
+#: largest to its smallest nonzero |eigenvalue| (after the fast transient, what the solution does
+#: is set by the inputs, which the Jacobian does not know).
+MIN_STIFFNESS_RATIO = 10.0
+#: Order of the local error estimate plus one (``q``) of the explicit candidates.
+_ERROR_ORDER = {"RK45": 5, "DOP853": 8}
+
+
+@dataclass
+class Stiffness:
+    """What ``auto`` knows about a model at t = 0 over a horizon ``t_end`` (see :func:`stiffness`).
+
+    A mode ``exp(λt)`` *decays* when ``-Re λ · t_end > ln(1/rtol)``: it dies out below the tolerance
+    within the horizon.  The modes that do not decay must be resolved by any method, with steps
+    ``h = c/|λ|``, ``c = (q!·rtol)^(1/q)`` (the local error ``(h|λ|)^q/q!`` at ``rtol``); a decaying
+    mode costs about ``q/c`` steps while it dies out, whatever its speed.  That is
+    ``steps_accuracy``.  An explicit method must in addition keep ``h·|λ| <= r(arg λ)`` for every
+    decaying mode (``r``: the radius of its stability region, :func:`rk_stability_radius`); that is
+    ``steps_stability``.  The model is stiff for the explicit candidate when stability forces more
+    steps than accuracy needs (the method would run at its stability limit, where its step-size
+    control and dense output are no longer accurate) and its time scales are apart.
+    """
+
+    eigenvalues: np.ndarray       # all of them, or the Ritz values of the estimate [1/s]
+    method: str                   # how they were found
+    lam_max: float                # largest |λ| [1/s]
+    ratio: float                  # largest / smallest nonzero |λ|
+    explicit: str                 # the explicit candidate at this tolerance
+    steps_accuracy: float         # steps the tolerance implies over t_end
+    steps_stability: float        # steps the explicit candidate's stability forces over t_end
+
+    @property
+    def stiff(self) -> bool:
+        return self.steps_stability > self.steps_accuracy and self.ratio >= MIN_STIFFNESS_RATIO
+
+
+@functools.lru_cache(maxsize=None)
+def _stability_polynomial(method: str) -> np.ndarray:
+    """Coefficients (highest power first) of ``R(z) = 1 + z bᵀ(I - zA)⁻¹·1`` of an explicit tableau
+    (``A`` strictly lower triangular, so ``R(z) = 1 + Σ_k z^(k+1) bᵀA^k·1``)."""
+    cls = SOLVERS[method]
+    s = cls.n_stages
+    A = np.zeros((s, s))
+    A[:, :cls.A.shape[1]] = cls.A
+    coef, v = [1.0], np.ones(s)
+    for _ in range(s):
+        coef.append(float(np.asarray(cls.B, dtype=float) @ v))
+        v = A @ v
+    return np.array(coef[::-1])
+
+
+def rk_stability_radius(method: str, angle: float) -> float:
+    """Largest ``r`` with ``|R(r·e^{iθ})| <= 1`` on the ray from 0 at angle ``θ`` (π: negative real axis).
+
+    ``R(z) = 1 + z bᵀ(I - zA)⁻¹·1`` is the stability function of scipy's tableau of ``method``,
+    sampled on ``r`` in (0, 10].
+    """
+    rs = np.linspace(1e-3, 10.0, 4000)
+    ok = np.abs(np.polyval(_stability_polynomial(method), rs * np.exp(1j * angle))) <= 1 + 1e-12
+    if not ok[0]:
+        return 0.0
+    return float(rs[np.argmin(ok)] if not ok.all() else rs[-1])
+
+
+def _jacobian_product(model, n: int):
+    """``v -> J·v`` at (0, x0), O(nnz) per product, and what it uses."""
+    if n <= DENSE_JACOBIAN_STATES or not hasattr(model, "rhs"):
+        from scipy.sparse import csr_array
+        J = csr_array(np.asarray(model.jac(0.0, model.x0), dtype=float))
+        return (lambda v: J @ v), "Jacobian products"
+    x0 = np.asarray(model.x0, dtype=float)
+    f0 = np.asarray(model.rhs(0.0, x0), dtype=float)
+    step = np.sqrt(np.finfo(float).eps) * max(1.0, float(np.max(np.abs(x0))))
+
+    def product(v):
+        h = step / max(float(np.max(np.abs(v))), 1e-300)
+        return (np.asarray(model.rhs(0.0, x0 + h * v), dtype=float) - f0) / h
+    return product, "differences of the right-hand side"
+
+
+def _ritz_values(product, n: int, m: int) -> np.ndarray:
+    """Eigenvalues of the Arnoldi projection of ``J`` on an ``m``-dimensional Krylov space from a
+    fixed random start: the extreme eigenvalues of ``J`` (largest |λ| first to converge); all of
+    them when ``m >= n``."""
+    m = min(m, n)
+    V = np.zeros((m + 1, n))
+    H = np.zeros((m + 1, m))
+    v = np.random.default_rng(0).standard_normal(n)
+    V[0] = v / np.linalg.norm(v)
+    for j in range(m):
+        w = product(V[j])
+        for _ in range(2):                        # Gram–Schmidt, repeated once for orthogonality
+            c = V[:j + 1] @ w
+            w = w - V[:j + 1].T @ c
+            H[:j + 1, j] += c
+        H[j + 1, j] = np.linalg.norm(w)
+        if not np.all(np.isfinite(H[:j + 2, j])):
+            raise ValueError("the Jacobian product is not finite")
+        if H[j + 1, j] <= 1e-12 * np.linalg.norm(H[:j + 2, :j + 1]):
+            m = j + 1                             # an invariant subspace: its eigenvalues are exact
+            break
+        V[j + 1] = w / H[j + 1, j]
+    return np.linalg.eigvals(H[:m, :m])
+
+
+def stiffness(model, t_end: float, rtol: float, exact_states: int = EXACT_EIGEN_STATES) -> Stiffness:
+    """Eigenvalues of the Jacobian at (0, x0) — all of them up to ``exact_states`` states, else an
+    Arnoldi estimate (:data:`KRYLOV_DIM` Ritz values, O(nnz) each) — and the step counts of
+    :class:`Stiffness`.  Raises ``ArithmeticError``, ``LinAlgError`` or ``ValueError`` when the
+    Jacobian cannot be evaluated."""
+    n = len(model.x0)
+    if n <= exact_states:
+        lam = np.linalg.eigvals(np.asarray(model.jac(0.0, model.x0), dtype=float))
+        how = f"all {n} eigenvalues"
+    else:
+        product, via = _jacobian_product(model, n)
+        lam = _ritz_values(product, n, KRYLOV_DIM)
+        how = f"Arnoldi estimate: {len(lam)} Ritz values of {n} from {via}"
+    if not np.all(np.isfinite(lam)):
+        raise ValueError("the Jacobian is not finite")
+    explicit = "DOP853" if rtol <= 1e-6 else "RK45"
+    q = _ERROR_ORDER[explicit]
+    tol = min(rtol, 0.5)
+    c = (math.factorial(q) * tol) ** (1.0 / q)
     mags = np.abs(lam)
     lam_max = float(mags.max(initial=0.0))
     nonzero = mags[mags > 1e-12 * max(lam_max, 1e-300)]
     ratio = lam_max / float(nonzero.min()) if nonzero.size else 1.0
-    horizon = lam_max * t_end
-    if horizon > 2e4 and ratio > 1e3:
-        return "Radau", f"stiff: |lambda|max*t_end = {horizon:.3g}, stiffness ratio {ratio:.3g}"
-    name = "DOP853" if rtol <= 1e-6 else "RK45"
-    return name, f"non-stiff: |lambda|max*t_end = {horizon:.3g}, stiffness ratio {ratio:.3g}"
+    decays = -lam.real * t_end > math.log(1.0 / tol)
+    steps_accuracy = (t_end * float(mags[~decays].max(initial=0.0)) + q) / c
+    fast = lam[decays]
+    fast = fast[np.abs(fast) >= np.abs(fast).max(initial=0.0) / 8]     # r varies by less than 8 with the angle
+    h_stab = min((rk_stability_radius(explicit, float(np.angle(z))) / abs(z) for z in fast), default=math.inf)
+    return Stiffness(lam, how, lam_max, ratio, explicit, steps_accuracy, t_end / h_stab)
+
+
+def choose_solver(model, t_end: float, rtol: float) -> tuple[str, str]:
+    """``auto``: Radau when the model is stiff for the explicit candidate (:class:`Stiffness`), else
+    DOP853 (``rtol <= 1e-6``) or RK45; the reason names the figures and which estimate ran."""
+    if len(model.x0) == 0:
+        return "RK45", "no states"
+    try:
+        s = stiffness(model, t_end, rtol)
+    except (ArithmeticError, np.linalg.LinAlgError, ValueError):
+        return "Radau", "Jacobian not available at t=0; implicit to be safe"
+    figures = (f"|lambda|max*t_end = {s.lam_max * t_end:.3g}, stiffness ratio {s.ratio:.3g}, "
+               f"{s.explicit} steps for stability {s.steps_stability:.3g} / for accuracy {s.steps_accuracy:.3g}; "
+               f"{s.method}")
+    return ("Radau", f"stiff: {figures}") if s.stiff else (s.explicit, f"non-stiff: {figures}")
+
+
+def _size(n_bytes: float) -> str:
+    for unit in ("B", "kB", "MB", "GB", "TB", "PB"):
+        if n_bytes < 1000 or unit == "PB":
+            return f"{n_bytes:.3g} {unit}"
+        n_bytes /= 1000
+
+
+def output_grid(t_end: float, dt_out: float | None, n_columns: int = 1) -> np.ndarray:
+    """0, dt_out, 2 dt_out, ... and ``t_end`` itself (both ends included) [s].
+
+    ``dt_out`` defaults to ``t_end/500``.  A grid of more than :data:`MAX_OUTPUT_ROWS` rows is
+    refused before it is allocated, with its size in memory for ``n_columns`` float columns."""
+    if not (isinstance(t_end, (int, float)) and np.isfinite(t_end) and t_end > 0):
+        raise MultipoleError("bad_time", f"t_end must be a positive finite time in s, got {t_end}",
+                             "e.g. simulate: {t_end: 1.0}")
+    if dt_out is None:
+        dt_out = t_end / 500
+    if not (isinstance(dt_out, (int, float)) and np.isfinite(dt_out) and dt_out > 0):
+        raise MultipoleError("bad_dt_out", f"dt_out must be a positive finite time in s, got {dt_out}",
+                             f"e.g. dt_out: {t_end / 500:.3g} (500 rows)")
+    rows = np.floor(t_end / dt_out) + 2
+    if rows > MAX_OUTPUT_ROWS:
+        raise MultipoleError("grid_too_large", f"the output grid t_end/dt_out = {t_end:g} s / {dt_out:g} s has "
+                             f"{rows:.3g} rows ({_size(rows * max(n_columns, 1) * 8)} for {n_columns} columns); "
+                             f"at most {MAX_OUTPUT_ROWS:,} rows are served",
+                             f"use dt_out >= {t_end / (MAX_OUTPUT_ROWS - 1):.3g} s or a shorter t_end")
+    n_out = int(round(t_end / dt_out))
+    if abs(n_out * dt_out - t_end) > 1e-9 * t_end:
+        n_out = int(np.floor(t_end / dt_out))
+    grid = np.arange(n_out + 1) * dt_out
+    if abs(grid[-1] - t_end) > 1e-9 * t_end:
+        grid = np.append(grid, t_end)
+    grid[-1] = min(grid[-1], t_end)
+    return grid
+
+
+def expected_steps(model, solver: str, t_end: float) -> tuple[float, str] | None:
+    """A rough lower bound of the integration steps from the Jacobian's eigenvalues at the start:
+    ``(steps, why)``, or None where it is not known (no states, more than 400, no Jacobian).
+
+    An explicit method needs about ``|λ|max·t_end/4`` steps (its stability limit); any method
+    needs about five steps per period of the fastest oscillation, ``0.8·max|Im λ|·t_end``."""
+    n = len(model.x0)
+    if n == 0 or n > 400:
+        return None
+    try:
+        with np.errstate(all="ignore"):
+            lam = np.linalg.eigvals(model.jac(0.0, model.x0))
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+        return None
+    if not np.all(np.isfinite(lam)):
+        return None
+    explicit = solver not in IMPLICIT and solver != "auto"
+    rate = float(np.abs(lam).max(initial=0.0)) / 4 if explicit else 0.8 * float(np.abs(lam.imag).max(initial=0.0))
+    what = "|lambda|max/4" if explicit else "0.8*max|Im lambda|"
+    return rate * t_end, f"{what} = {rate:.3g} 1/s over t_end = {t_end:g} s"
 
 
 def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "auto", rtol: float = 1e-6,
              atol: float = 1e-9, max_step: float = np.inf, progress: bool | None = None,
              x0=None) -> Result:
-    """Integrate ``model`` from 0 to ``t_end`` and sample its outputs every ``dt_out``."""
-    if t_end <= 0:
-        raise SimulationError("bad_time", f"t_end must be positive, got {t_end}")
-    dt_out = dt_out or t_end / 500
-    n_out = int(round(t_end / dt_out))
-    if abs(n_out * dt_out - t_end) > 1e-9 * t_end:
-        n_out = int(np.floor(t_end / dt_out))
-    t_grid = np.append(np.arange(n_out + 1) * dt_out, [] if abs(n_out * dt_out - t_end) <= 1e-9 * t_end else [t_end])
-    t_grid[-1] = min(t_grid[-1], t_end)
+    """Integrate ``model`` from 0 to ``t_end`` [s] and sample its outputs every ``dt_out`` [s].
+
+    Errors: :class:`~multipole.errors.MultipoleError` for options that cannot be served (an
+    output grid of more than :data:`MAX_OUTPUT_ROWS` rows, an unknown solver);
+    :class:`SimulationError` (a :class:`~multipole.errors.RunError`) for a run that fails,
+    naming the element, the variable and the time: an arithmetic error in the model (``1/t`` at
+    t = 0, the root of a negative number, an overflow), Newton's method failing in an algebraic
+    loop, a step the integrator cannot take, a state or output that becomes infinite or NaN.
+    Warnings of numpy and scipy during the run are collected in ``Result.stats["warnings"]``
+    instead of being printed; a run the stiffness estimate says takes more than
+    :data:`MANY_STEPS` steps is announced with a :class:`~multipole.errors.MultipoleWarning`.
+    Ctrl-C raises :class:`~multipole.errors.Interrupted` with the time reached.
+    """
+    n_columns = 1 + len(model.x0) + len(model.output_names)
+    t_grid = output_grid(t_end, dt_out, n_columns)
+    if solver != "auto" and solver not in SOLVERS:
+        raise MultipoleError("unknown_solver", f"unknown solver {solver!r}", f"use auto or one of {', '.join(SOLVERS)}")
+    estimate = expected_steps(model, solver, t_end)
+    if estimate is not None and estimate[0] > MANY_STEPS:
+        warnings.warn(f"{model.name}: the stiffness estimate says this run takes about {estimate[0]:.2g} steps "
+                      f"({estimate[1]}); it may run for hours (shorten t_end, or soften the stiffest coupling)",
+                      MultipoleWarning, stacklevel=2)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    try:
+        with warnings.catch_warnings(record=True) as caught, np.errstate(all="ignore"):
+            warnings.simplefilter("always")
+            result = _integrate(model, t_end, t_grid, solver, rtol, atol, max_step, progress, x0)
+    except BaseException as exc:
+        if progress:                       # end the progress bar's line before the error line
+            sys.stderr.write("\n")
+        if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
+            raise Interrupted(_time_reached(exc)) from None
+        if isinstance(exc, (ArithmeticError, ValueError, np.linalg.LinAlgError)) and \
+                not isinstance(exc, MultipoleError):
+            failure = model_failure(model, exc)
+            if failure is not None:
+                raise failure from None
+        if isinstance(exc, MemoryError):
+            raise _failed(model, "out_of_memory", "not enough memory for the run",
+                          "use a coarser dt_out or a shorter t_end") from None
+        raise
+    notes = list(dict.fromkeys(str(w.message).splitlines()[0] for w in caught))
+    if notes:
+        result.stats["warnings"] = notes
+    return result
+
+
+def _time_reached(exc) -> float | None:
+    """The simulated time [s] at which an exception interrupted :func:`_integrate`."""
+    tb, t = exc.__traceback__, None
+    while tb is not None:
+        if tb.tb_frame.f_code.co_name == "_integrate":
+            loc = tb.tb_frame.f_locals
+            t = getattr(loc.get("ode"), "t", loc.get("t"))
+        tb = tb.tb_next
+    return float(t) if isinstance(t, (int, float, np.floating)) else None
+
+
+_REASONS = {ZeroDivisionError: "division by zero", OverflowError: "overflow (a value beyond 1.8e308, "
+            "e.g. exp of more than 709)", np.linalg.LinAlgError: "singular matrix in a linear loop"}
+_FUNCTIONS = {"rhs": "the right-hand side", "rhs_in_mode": "the right-hand side", "jac": "the Jacobian",
+              "jac_in_mode": "the Jacobian", "outputs": "the outputs", "switches": "the switching functions",
+              "values": "the port values"}
+
+
+def _variable_names(model) -> dict:
+    """{identifier in the generated code: variable name} (``src_u`` -> ``src.u``, ``x0`` -> the
+    first state), read from the ``values`` function whose return lists ``VALUE_NAMES`` in order."""
+    names = getattr(model, "_variable_names", None)
+    if names is None:
+        names = {f"x{i}": s for i, s in enumerate(model.state_names)}
+        for node in ast.walk(ast.parse(model.source)):
+            if isinstance(node, ast.FunctionDef) and node.name == "values":
+                ret = node.body[-1]
+                if isinstance(ret, ast.Return) and isinstance(ret.value, ast.List):
+                    names.update({e.id: v for e, v in zip(ret.value.elts, model.value_names)
+                                  if isinstance(e, ast.Name)})
+        model._variable_names = names
+    return names
+
+
+def element_of(variable: str) -> str:
+    """The user's element a variable belongs to: ``src.p.e`` -> ``src``, ``der(rotor.p)`` -> ``rotor``."""
+    inner = variable[4:-1] if variable.startswith("der(") else variable
+    return inner.split(".", 1)[0]
+
+
+def _assigned(model, lineno: int) -> tuple[str, str] | None:
+    """(variable name, code) of the assignment at ``lineno`` of the generated source, or of the
+    first named variable a helper line (common subexpression, loop matrix) feeds."""
+    names = _variable_names(model)
+    lines = model.source.splitlines()
+    for line in lines[lineno - 1:]:
+        if line.startswith("def ") or line.strip().startswith("return"):
+            return None
+        m = re.match(r"\s+([\w, ]+?),? = (.*)", line)
+        if m:
+            for ident in m.group(1).split(","):
+                if ident.strip() in names:
+                    return names[ident.strip()], m.group(2).strip()
+    return None
+
+
+def model_failure(model, exc: BaseException) -> SimulationError | None:
+    """A :class:`SimulationError` for an exception raised in the generated code of ``model``,
+    naming the element, the variable, its code and the time; None if the exception did not come
+    from the model (a bug elsewhere is not disguised as a model failure)."""
+    frames = []
+    tb = exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_code.co_filename.startswith("<multipole model"):
+            frames.append((tb.tb_frame, tb.tb_lineno))
+        tb = tb.tb_next
+    if not frames:
+        return None
+    t = None
+    where, function, element = "", "", None
+    for frame, lineno in reversed(frames):     # the deepest line that assigns a named variable
+        t = frame.f_locals.get("t", t) if t is None else t
+        function = function or _FUNCTIONS.get(frame.f_code.co_name, "")
+        found = _assigned(model, lineno)
+        if found:
+            name, code = found
+            code = code.replace("math.", "")
+            code = code if len(code) <= 80 else code[:77] + "..."
+            where, element = f"{name} = {code}", element_of(name)
+            break
+    where = where or function or "the model"
+    when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
+    if isinstance(exc, NewtonError):
+        return _failed(model, "newton_failed", f"Newton's method failed{when} in {where}: {exc.message}",
+                       exc.fix, element)
+    reason = next((r for cls, r in _REASONS.items() if isinstance(exc, cls)), None)
+    if reason is None:
+        text = str(exc)
+        reason = ("outside the domain of a function (root or logarithm of a negative number, acos or asin "
+                  "beyond +-1)" if "domain" in text else text or type(exc).__name__)
+    return _failed(model, "arithmetic_error", f"{reason}{when} in {where}",
+                   "check that element's expression and parameters at that time (e.g. 1/t at t = 0, "
+                   "sqrt of a negative value); shift, clamp or regularise it", element)
+
+
+def locate_non_finite(model, t: float, x) -> tuple[str, str | None]:
+    """``(text, element)``: which variable is first infinite or NaN (or fails) at (t, x) in
+    evaluation order, and the user's element it belongs to."""
+    x = np.asarray(x, dtype=float)
+    bad = [s for s, v in zip(model.state_names, x) if not np.isfinite(v)]
+    if bad:
+        return f"state {bad[0]}", element_of(bad[0])
+    try:
+        vals = model.values(t, x)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        failure = model_failure(model, exc)
+        return (failure.message, failure.element) if failure is not None else (str(exc), None)
+    for name, v in zip(model.value_names, vals):
+        if not np.isfinite(v):
+            return f"{name} = {v}", element_of(name)
+    return "no variable of the model (the solver's own arithmetic)", None
+
+
+def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: float, max_step: float,
+               progress: bool, x0) -> Result:
+    """The step loop of :func:`simulate` (its options checked, warnings captured)."""
     reason = "chosen by the user"
     if solver == "auto":
         solver, reason = choose_solver(model, t_end, rtol)
-    if solver not in SOLVERS:
-        raise SimulationError("unknown_solver", f"unknown solver {solver!r}", f"use auto or one of {', '.join(SOLVERS)}")
     cls = SOLVERS[solver]
     x = np.array(model.x0 if x0 is None else x0, dtype=float)
     n = len(x)
     model.reset_stats()
-    if progress is None:
-        progress = sys.stderr.isatty()
     bar = _Progress(t_end, progress)
     states = np.empty((len(t_grid), n))
     k_out = 0
@@ -177,7 +552,20 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     start = time.perf_counter()
     forced: dict = {}
     rhs, newton_failures = _rejecting_unsolvable_loops(model)
+    # switching functions of time alone: their crossings are found first and end segments
+    time_only = np.array(getattr(model, "switch_time_only", [False] * model.n_switches), dtype=bool)
+    watch = ~time_only                     # the switches checked after every step
+    schedule, t_sides = time_switch_schedule(lambda tt: model.switches(tt, x), time_only,
+                                             getattr(model, "switch_rate", []), t_end, model.switch_text)
+    i_sched = 0
     while n and k_out < len(t_grid):
+        while i_sched < len(schedule) and schedule[i_sched][0] <= t:     # a scheduled crossing
+            _, k, side = schedule[i_sched]
+            t_sides[k] = side
+            events.append((t, model.switch_text[k]))
+            i_sched += 1
+            _check_chattering(events)
+        t_bound = schedule[i_sched][0] if i_sched < len(schedule) else t_end
         kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
         if solver in IMPLICIT:
             kw["jac"] = model.jac_in_mode if model.n_switches else model.jac
@@ -187,31 +575,34 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
         forced = {}
         if model.n_switches:               # hold every switch on its side for this segment
             g_sign = _sides(model, t, x, g_sign, t_end)
+            g_sign[time_only] = t_sides[time_only]
             model.set_mode(g_sign)
-        ode = cls(rhs, t, x, t_end, **kw)
+        ode = cls(rhs, t, x, t_bound, **kw)
         stats["segments"] += 1
         event = None
         while ode.status == "running" and event is None:
             try:
                 msg = ode.step()
             except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-                raise SimulationError("step_failed", f"integration failed at t = {ode.t:.6g} s: {exc}") from None
+                raise model_failure(model, exc) or SimulationError(
+                    "step_failed", f"integration failed at t = {ode.t:.6g} s: {exc}") from None
             if ode.status == "failed":
                 if newton_failures:
                     msg += (f"; Newton's method failed {len(newton_failures)} times in an algebraic loop "
                             f"(last: {newton_failures[-1]})")
-                raise SimulationError("step_failed", f"{solver} failed at t = {ode.t:.6g} s: {msg}",
-                                      "try solver auto or Radau, or tighter tolerances")
+                cause, element = None, None
+                if not np.all(np.isfinite(rhs(ode.t, ode.y))):
+                    cause, element = locate_non_finite(model, ode.t, ode.y)
+                    msg += f"; infinite or NaN: {cause}"
+                raise _failed(model, "step_failed", f"{solver} failed at t = {ode.t:.6g} s: {msg}",
+                              "try solver auto or Radau, or tighter tolerances", element)
             stats["steps"] += 1
             dense = _Dense(ode, stats)
             t_stop = ode.t
-            if model.n_switches:
-                g_new = np.sign(np.array(model.switches(ode.t, ode.y), dtype=float))
-                crossed = np.nonzero((g_new != g_sign) & (g_sign != 0) & (g_new != 0))[0]
-                if crossed.size:
-                    event = min((_root(model, dense, k, ode.t_old, ode.t), k) for k in crossed)
+            if watch.any():
+                event = _first_crossing(model, dense, g_sign, watch, ode.t_old, ode.t)
+                if event is not None:
                     t_stop = event[0]
-                g_sign = np.where(g_sign == 0, g_new, g_sign)
             while k_out < len(t_grid) and t_grid[k_out] <= t_stop + 1e-12 * max(1.0, t_end):
                 states[k_out] = dense(min(t_grid[k_out], ode.t))
                 k_out += 1
@@ -219,7 +610,7 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
         _accumulate(stats, ode, solver)
         if event is None:
             t, x = ode.t, ode.y
-            if ode.status == "finished":
+            if ode.status == "finished" and t_bound >= t_end:
                 states[k_out:] = ode.y
                 k_out = len(t_grid)
             continue
@@ -227,27 +618,155 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
         x = dense(t)
         forced = {k_ev: -g_sign[k_ev]}
         events.append((t, model.switch_text[k_ev]))
-        if len(events) > 5000:
-            raise SimulationError("chattering", f"more than 5000 switching events by t = {t:.6g} s "
-                                  f"(last: {events[-1][1]})", "regularise the law or check the model")
+        _check_chattering(events)
     bar.close()
-    stats["wall_time"] = time.perf_counter() - start
+    stats["wall_time"] = stats["run_time"] = time.perf_counter() - start
     stats.update({k: v for k, v in model.stats.items()})
-    if newton_failures:
-        stats["newton_failures"] = len(newton_failures)
     dense_calls = stats.pop("dense_calls")
     if solver in _STAGES:
         extra = dense_calls * (3 if solver == "DOP853" else 0)
         attempts = (stats["nfev"] - stats["segments"] - extra) / _STAGES[solver]
         stats["rejected"] = max(int(round(attempts - stats["steps"])), 0)
-    outs = np.array([model.outputs(tt, xx) for tt, xx in zip(t_grid, states)]) if model.output_names else \
-        np.empty((len(t_grid), 0))
-    if not np.all(np.isfinite(states)):
-        raise SimulationError("not_finite", "the solution became infinite or NaN",
-                              "check parameters (zero inertia? negative stiffness?) and the check report")
+    cached = bool(getattr(model, "cached", False))
+    stats = solver_stats(stats, backend="numpy", events=len(events), newton_failures=len(newton_failures),
+                         compile_time=getattr(model, "compile_time", None), compile_cached=cached,
+                         model_cached=cached)
+    outs = sample_outputs(model, t_grid, states)
     outputs = {name: outs[:, k] for k, name in enumerate(model.output_names)}
     units = dict(zip(model.output_names, getattr(model, "output_units", [])))
     return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events, units)
+
+
+def check_finite(model, t_grid, states, outs) -> None:
+    """Refuse sampled states or outputs that are infinite or NaN, naming the first time and the
+    variable and element responsible (both backends)."""
+    for what, data in (("state", states), ("output", outs)):
+        bad = ~np.isfinite(data)
+        if bad.any():
+            row, col = np.argwhere(bad)[0]
+            name = (model.state_names if what == "state" else model.output_names)[col]
+            cause, element = locate_non_finite(model, t_grid[row], states[row]) if what == "output" else \
+                ("", element_of(name))
+            raise _failed(model, "not_finite", f"{what} {name} became infinite or NaN at t = {t_grid[row]:.6g} s"
+                          + (f" ({cause})" if cause else ""),
+                          "check parameters (zero inertia? negative stiffness?), the laws' domains "
+                          "and the check report", element or element_of(name))
+
+
+def sample_outputs(model, t_grid, states) -> np.ndarray:
+    """The outputs on the grid, shape ``(len(t_grid), n_outputs)``; non-finite values refused."""
+    outs = np.array([model.outputs(tt, xx) for tt, xx in zip(t_grid, states)]) if model.output_names else \
+        np.empty((len(t_grid), 0))
+    check_finite(model, t_grid, states, outs)
+    return outs
+
+
+#: The keys of ``Result.stats`` that every backend fills, with the same meaning (docs/backends.md,
+#: "Statistics"); a figure a backend cannot count is None (scipy does not report the rejected steps
+#: of its implicit methods, nor Radau's Newton iterations).  ``warnings`` is added when there were any.
+STATS_KEYS = ("backend", "steps", "rejected", "nfev", "njev", "nlu", "segments", "events", "rhs_calls",
+              "jac_calls", "newton_iterations", "newton_solves", "newton_failures", "collocation_iterations",
+              "translate_time", "compile_time", "run_time", "wall_time", "compile_cached", "model_cached")
+
+
+def solver_stats(counted: dict, **more) -> dict:
+    """``Result.stats``: every key of :data:`STATS_KEYS` (None where not counted), from ``counted``
+    and ``more``."""
+    values = {**counted, **more}
+    return {**{k: values.get(k) for k in STATS_KEYS}, **values}
+
+
+#: the switching functions watched after a step are evaluated at this many equispaced points of
+#: the step (the last is its end): a sign change and back inside one step is found when a point
+#: falls between, which is certain for an excursion longer than a fifth of the step
+PROBES = 5
+#: a time-only switching function is sampled at least this many times over the run, and at least
+#: this many times per half period of the fastest sine inside it
+TIME_SAMPLES, SAMPLES_PER_HALF_PERIOD = 4096, 8
+#: samples of a time-only switching function with an argument not linear in t (rate unknown)
+TIME_SAMPLES_UNKNOWN_RATE = 65536
+#: more samples than this are refused (the crossings come too often to be events)
+MAX_TIME_SAMPLES = 2_000_000
+MAX_EVENTS = 5000
+
+
+def _check_chattering(events):
+    if len(events) > MAX_EVENTS:
+        t, text = events[-1]
+        raise SimulationError("chattering", f"more than {MAX_EVENTS} switching events by t = {t:.6g} s "
+                              f"(last: {text})", "regularise the law or check the model")
+
+
+def time_switch_schedule(g, time_only, rate, t_end, texts=None) -> tuple[list, np.ndarray]:
+    """The crossings of the switching functions that depend on time alone, found before the run.
+
+    ``g(t)`` gives every switching function at time t [s] (the state does not matter for these);
+    ``time_only[k]`` marks them and ``rate[k]`` is the fastest angular rate of a sine inside
+    function k [rad/s] (0: none, inf: unknown).  Each is sampled at ``t_end/TIME_SAMPLES`` or
+    ``SAMPLES_PER_HALF_PERIOD`` points per half period of that sine, whichever is finer, and every
+    sign change between samples is located by Brent's method (to 1e-14 s).  Returns
+    ``([(t, k, side after), ...] in time order, sides)``, ``sides[k]`` being the side (±1) of
+    function k at the start (its first non-zero sign).  Sampling stops after ``MAX_EVENTS + 1``
+    crossings (the run then stops as chattering)."""
+    time_only = np.asarray(time_only, dtype=bool)
+    sides = np.ones(len(time_only))
+    ks = np.nonzero(time_only)[0]
+    if not ks.size:
+        return [], sides
+    fastest = max(float(rate[k]) for k in ks) if len(rate) else 0.0
+    h = t_end / (TIME_SAMPLES_UNKNOWN_RATE if np.isinf(fastest) else TIME_SAMPLES)
+    if 0 < fastest < np.inf:
+        h = min(h, np.pi / fastest / SAMPLES_PER_HALF_PERIOD)
+    n = int(np.ceil(t_end / h))
+    if n > MAX_TIME_SAMPLES:
+        k = max(ks, key=lambda k: rate[k])
+        name = texts[k] if texts is not None else f"switching function {k}"
+        raise SimulationError("switching_too_fast", f"{name} oscillates at {fastest:.4g} rad/s: finding its "
+                              f"crossings over t_end = {t_end:.6g} s needs {n} samples (limit {MAX_TIME_SAMPLES})",
+                              "shorten t_end or regularise the law (a smooth function instead of a switch)")
+    out: list = []
+    last = np.zeros(len(ks))          # sign of the last non-zero sample of each function, and its time
+    t_last = np.zeros(len(ks))
+    for start in range(0, n + 1, 4096):
+        ts = np.minimum(np.arange(start, min(start + 4096, n + 1)) * h, t_end)
+        vals = np.array([np.asarray(g(tt), dtype=float)[ks] for tt in ts]).reshape(len(ts), len(ks))
+        signs = np.sign(vals)
+        for j, k in enumerate(ks):
+            nz = np.nonzero(signs[:, j])[0]
+            if not nz.size:
+                continue
+            seq, t_seq = signs[nz, j], ts[nz]
+            if last[j] == 0:
+                sides[k] = last[j] = seq[0]
+                t_last[j] = t_seq[0]
+            seq = np.concatenate(([last[j]], seq))
+            t_seq = np.concatenate(([t_last[j]], t_seq))
+            for i in np.nonzero(seq[1:] != seq[:-1])[0]:
+                tc = brentq(lambda tt: np.asarray(g(tt), dtype=float)[k], t_seq[i], t_seq[i + 1],
+                            xtol=1e-14 * max(1.0, t_end), rtol=4 * np.finfo(float).eps)
+                if tc < t_end:
+                    out.append((float(tc), int(k), float(seq[i + 1])))
+            last[j], t_last[j] = seq[-1], t_seq[-1]
+        if len(out) > MAX_EVENTS:
+            break
+    out.sort()
+    return out, sides
+
+
+def _first_crossing(model, dense, g_sign, watch, t0, t1):
+    """``(t, k)``: the earliest crossing inside the step [t0, t1] of a watched switching function
+    away from the side ``g_sign`` it is held on, or None.  The functions are evaluated at
+    :data:`PROBES` equispaced points of the dense output, and the first sub-interval where one has
+    left its side is searched, so two crossings inside one step are not missed."""
+    a = t0
+    for j in range(1, PROBES + 1):
+        b = t1 if j == PROBES else t0 + (t1 - t0) * j / PROBES
+        s = np.sign(np.array(model.switches(b, dense(b)), dtype=float))
+        hit = np.nonzero(watch & (s != 0) & (s != g_sign))[0]
+        if hit.size:
+            return min((_root(model, dense, k, a, b), k) for k in hit)
+        a = b
+    return None
 
 
 def _sides(model, t, x, signs, t_end):

@@ -347,7 +347,7 @@ def cache_dir() -> Path:
     if that folder is private (:func:`multipole.cache.private_dir`), else (and with
     ``MULTIPOLE_CACHE=off``) a private folder of this process, removed at exit."""
     root = cache.root()
-    folder = cache.private_dir(root / "numba") if root is not None else None
+    folder = cache.private_dir(root) and cache.private_dir(root / "numba") if root is not None else None
     return folder if folder is not None else cache.process_dir()
 
 

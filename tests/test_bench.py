@@ -45,8 +45,9 @@ def test_bad_reference_mappings_are_refused(ref, code):
 
 def test_reference_formulas_go_through_the_expression_whitelist():
     sc = loads(_with_reference('reference: {kind: closed_form, output: m1.v, expression: "__import__(1)"}'), "r.yaml")
-    with pytest.raises(NetlistError):
+    with pytest.raises(NetlistError) as err:
         build_reference(sc, pipeline.model(sc))
+    assert err.value.code == "unsafe_expression"
 
 
 def test_closed_form_reference_and_error_measure():

@@ -159,8 +159,9 @@ def test_floating_terminals_follow_the_voltage_difference():
 def test_grounded_motor_has_no_negative_port():
     """By default the negative terminal is at 0 V inside the motor; wiring elec_n is refused with
     the list of ports."""
-    with pytest.raises(NetlistError, match="elec_n"):
+    with pytest.raises(NetlistError, match="elec_n") as err:
         scene(motor_scene(supply="floating"))
+    assert err.value.code == "unknown_port"
 
 
 def test_catalogue_entry():

@@ -528,8 +528,9 @@ def test_step_into_rigid_storage_is_a_diagnostic_not_a_spike():
     an = pipeline.check(sc)
     assert [d.code for d in an.errors] == ["input_differentiation"]
     assert "step" in an.errors[0].message and an.errors[0].fix
-    with pytest.raises(IllPosedError):
+    with pytest.raises(IllPosedError) as err:
         pipeline.run(sc, progress=False)
+    assert err.value.code == "input_differentiation"
 
 
 def test_smooth_rise_into_rigid_storage_gives_the_effective_inertia_torque():

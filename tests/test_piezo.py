@@ -314,5 +314,6 @@ def test_stack_refuses_a_count_that_is_not_a_whole_number(n):
     """n must be a literal whole number >= 1; the netlist error names the element."""
     from multipole.errors import NetlistError
     text = piezo_scene("stack", 1).replace("n: 1,", f"n: {n},").replace("{U: ", "{nn: 3, U: ")
-    with pytest.raises(NetlistError, match="whole number"):
+    with pytest.raises(NetlistError) as err:
         scene(text)
+    assert err.value.code == "bad_value" and "element 'piezo'" in str(err.value)

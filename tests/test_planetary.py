@@ -147,11 +147,14 @@ def test_elastic_planetary_settles_to_the_rigid_torque_split():
 
 def test_planetary_parameters_are_checked():
     from multipole.errors import NetlistError
-    for bad in ("{type: planetary, z_sun: 24}", "{type: planetary, z_sun: 24, z_ring: 72, r1: 0.1}",
-                "{type: planetary, r1: 0.03, r2: 0.015}", "{type: planetary, z_sun: 30, z_ring: 30}"):
-        with pytest.raises(NetlistError):
+    for bad, code in (("{type: planetary, z_sun: 24}", "conflicting_parameters"),
+                      ("{type: planetary, z_sun: 24, z_ring: 72, r1: 0.1}", "conflicting_parameters"),
+                      ("{type: planetary, r1: 0.03, r2: 0.015}", "missing_parameter"),
+                      ("{type: planetary, z_sun: 30, z_ring: 30}", "bad_value")):
+        with pytest.raises(NetlistError) as err:
             check(f"""
             elements:
               pg: {bad}
             connections: []
             """)
+        assert err.value.code == code, bad

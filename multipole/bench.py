@@ -61,7 +61,7 @@ from .expressions import parse_expression
 from .netlist import Scene, load
 from .network import flatten
 from .primitives import T
-from .simulate import IMPLICIT, SOLVERS, choose_solver, simulate
+from .simulate import IMPLICIT, SOLVERS, choose_solver, rk_stability_radius, simulate
 
 SWEEP_SOLVERS = ["RK45", "DOP853", "Radau", "BDF", "LSODA", "GL4", "auto"]
 TOLERANCES = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
@@ -80,27 +80,6 @@ CSV_FIELDS = ["scene", "backend", "solver", "chosen", "rtol", "atol", "status", 
 
 # -------------------------------------------------------------------------------------------------
 # stability bound of explicit Runge–Kutta methods
-
-def rk_stability_radius(method: str, angle: float) -> float:
-    """Largest ``r`` with ``|R(r·e^{iθ})| <= 1`` on the ray from 0 at angle ``θ`` (π: negative real axis).
-
-    ``R(z) = 1 + z bᵀ(I - zA)⁻¹·1`` is the stability function of scipy's tableau of ``method``.
-    """
-    cls = SOLVERS[method]
-    s = cls.n_stages
-    A = np.zeros((s, s))
-    A[:, :cls.A.shape[1]] = cls.A
-    b, one = np.asarray(cls.B, dtype=float), np.ones(s)
-
-    def amp(r):
-        z = r * np.exp(1j * angle)
-        return abs(1 + z * b @ np.linalg.solve(np.eye(s) - z * A, one))
-    rs = np.linspace(1e-3, 10.0, 4000)
-    ok = np.array([amp(r) <= 1 + 1e-12 for r in rs])
-    if not ok[0]:
-        return 0.0
-    return float(rs[np.argmin(ok)] if not ok.all() else rs[-1])
-
 
 def explicit_stability_bound(eigenvalues, method: str, t_end: float) -> dict:
     """Fewest steps and evaluations an explicit method needs to stay stable over ``t_end`` [s].
@@ -738,10 +717,9 @@ def plot_work_precision(rep: SceneReport, path) -> None:
     backend; (2) error against wall time of every compiled backend (dashed) and of the hand-written
     model with ``solve_ivp`` (dotted) — the equal-error comparison; (3) error against nfev, numpy
     backend.  Colour: the method; line style: who ran it (said in each legend)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, axes = plt.subplots(1, 3, figsize=(16.5, 7.0), sharey=True)
+    from matplotlib.figure import Figure      # no pyplot: the caller's backend is left alone
+    fig = Figure(figsize=(16.5, 7.0))
+    axes = fig.subplots(1, 3, sharey=True)
     axes[1].sharex(axes[0])            # the same wall-time scale for numpy, compiled and hand-written runs
     floor = max(rep.reference.error, 1e-16)
     panels = [(axes[0], "wall_s", {"numpy"}, "numpy backend (generated model + scipy)"),
@@ -780,7 +758,6 @@ def plot_work_precision(rep: SceneReport, path) -> None:
         fig.text(0.5, 0.01, note, ha="center", fontsize=8, color="0.3")
     fig.tight_layout(rect=(0, 0.03, 1, 0.96))
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 # -------------------------------------------------------------------------------------------------

@@ -32,8 +32,9 @@ def test_mass_spring_damper_step_response():
     x = F / k * (1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta**2) * np.sin(wd * t)))
     v = F / k * wn / np.sqrt(1 - zeta**2) * np.exp(-zeta * wn * t) * np.sin(wd * t)
     scale_x, scale_v = np.abs(x).max(), np.abs(v).max()
-    assert np.max(np.abs(res["spring.deflection"] - x)) / scale_x <= 1e-6
-    assert np.max(np.abs(res["body.v"] - v)) / scale_v <= 1e-6
+    # measured 1.4e-10 (x) and 1.5e-10 (v) with DOP853 at rtol 1e-10: bound ~70x that
+    assert np.max(np.abs(res["spring.deflection"] - x)) / scale_x <= 1e-8
+    assert np.max(np.abs(res["body.v"] - v)) / scale_v <= 1e-8
     assert np.allclose(res["spring.force"], k * res["spring.deflection"], rtol=1e-12, atol=0)
 
 
@@ -56,8 +57,9 @@ simulate: {t_end: 0.1, dt_out: 1.0e-4, rtol: 1.0e-10, atol: 1.0e-14}
 """
 
 
-@pytest.mark.parametrize("solver", ["auto", "Radau"])
-def test_series_rlc_step_response(solver):
+# measured relative errors at rtol 1e-10: auto (DOP853) 2.2e-10, Radau 1.3e-11; bounds ~50-75x that
+@pytest.mark.parametrize("solver, bound", [("auto", 1e-8), ("Radau", 1e-9)])
+def test_series_rlc_step_response(solver, bound):
     V, R, L, C = 12.0, 10.0, 0.1, 1.0e-4
     res = run(RLC, solver=solver)
     t = res.t
@@ -65,11 +67,12 @@ def test_series_rlc_step_response(solver):
     wd = np.sqrt(1 / (L * C) - alpha**2)
     vc = V * (1 - np.exp(-alpha * t) * (np.cos(wd * t) + alpha / wd * np.sin(wd * t)))
     i = V / (L * wd) * np.exp(-alpha * t) * np.sin(wd * t)
-    assert np.max(np.abs(res["C1.v"] - vc)) / V <= 1e-6
-    assert np.max(np.abs(res["L1.i"] - i)) / np.abs(i).max() <= 1e-6
-    # Ohm's law and the source current follow from the same loop current
-    assert np.allclose(res["R1.v"], R * res["L1.i"], rtol=1e-9, atol=1e-12)
-    assert np.allclose(res["supply.i"], res["L1.i"], rtol=1e-9, atol=1e-12)
+    assert np.max(np.abs(res["C1.v"] - vc)) / V <= bound
+    assert np.max(np.abs(res["L1.i"] - i)) / np.abs(i).max() <= bound
+    # Ohm's law and the source current follow from the same loop current (one product of the same
+    # state: measured difference 0, bound a few roundings)
+    assert np.allclose(res["R1.v"], R * res["L1.i"], rtol=1e-14, atol=0)
+    assert np.allclose(res["supply.i"], res["L1.i"], rtol=1e-14, atol=0)
 
 
 HYDRAULIC = """
@@ -96,7 +99,8 @@ def test_hydraulic_orifice_charging_an_accumulator():
     P, r, c = 1.0e7, 1.0e9, 1.0e10
     res = run(HYDRAULIC)
     p = P * (1 - np.exp(-res.t * c / r))
-    assert np.max(np.abs(res["acc.p.e"] - p)) / P <= 1e-6
-    assert np.max(np.abs(res["acc.q"] - p / c)) / (P / c) <= 1e-6
-    assert np.max(np.abs(res["orifice.p.f"] - (P - p) / r)) / (P / r) <= 1e-6
+    # measured 5.6e-11 for all three (DOP853 at rtol 1e-10); bound ~90x that
+    assert np.max(np.abs(res["acc.p.e"] - p)) / P <= 5e-9
+    assert np.max(np.abs(res["acc.q"] - p / c)) / (P / c) <= 5e-9
+    assert np.max(np.abs(res["orifice.p.f"] - (P - p) / r)) / (P / r) <= 5e-9
     assert res.units == {"acc.q": "m^3", "acc.p.e": "Pa", "orifice.p.f": "m^3/s"}

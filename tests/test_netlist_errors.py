@@ -39,6 +39,17 @@ CASES = {
     "unknown_top_key": (GOOD + "simulation: {t_end: 1}\n", ["unknown top-level key"], ":7"),
 }
 
+#: the error code each case must carry (the contract scripts match on)
+CODES = {
+    "malformed_yaml": "yaml_syntax", "duplicate_key": "duplicate_key", "zero_inertia": "bad_value",
+    "negative_inertia": "bad_value", "unknown_solver": "unknown_solver", "unknown_type": "unknown_type",
+    "unknown_parameter": "unknown_parameter", "missing_parameter": "missing_parameter",
+    "unknown_port": "unknown_port", "port_used_twice": "port_used_twice", "non_numeric": "not_numeric",
+    "unknown_name": "unknown_name", "code_import": "unsafe_expression", "code_attribute": "unsafe_expression",
+    "code_lambda": "unsafe_expression", "python_tag": "yaml_syntax", "unknown_output": "unknown_output",
+    "unknown_top_key": "unknown_key",
+}
+
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_bad_input_gives_one_clean_line(case, tmp_path, capsys):
@@ -54,6 +65,7 @@ def test_bad_input_gives_one_clean_line(case, tmp_path, capsys):
     assert "Traceback" not in out.err + out.out
     lines = [ln for ln in out.err.splitlines() if ln.strip()]
     assert len(lines) == 1, out.err
+    assert lines[0].startswith(f"error[{CODES[case]}] "), lines[0]
     assert str(path) + line in lines[0]
     for w in words:
         assert w in lines[0]

@@ -140,6 +140,13 @@ class _Printer(PythonCodePrinter):
         a = self._print(e.args[0])
         return f"math.copysign(1.0, {a}) if ({a}) != 0 else 0.0"
 
+    def _print_DiracDelta(self, e):
+        """The derivative of a step or sign (an ideal Coulomb law ``sign(f)``): 0.  Every step and
+        sign is a switching function, so the model is integrated in segments with each switch held
+        on its side, and inside a segment the derivative is exactly zero; the jump itself is an
+        event, not a slope."""
+        return "0.0"
+
     def _print_Abs(self, e):
         side = self._side(e.args[0])
         if side is not None:

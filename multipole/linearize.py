@@ -13,7 +13,7 @@ import numpy as np
 import sympy as sp
 
 from .equations import Equations
-from .errors import IllPosedError
+from .errors import IllPosedError, MultipoleError, RunError
 from .primitives import T
 
 
@@ -69,7 +69,7 @@ def linearize(eq: Equations, outputs) -> Linearization:
     y = sp.Matrix([eq.substituted(eq.output(o), max_ops=10**9) for o in outputs])
     point = {p: sp.Float(v) for p, v in eq.params.items()}
     point.update({x: sp.Float(v) for x, v in zip(xs, eq.initial_values())})
-    point.update({u: sp.sympify(e).xreplace({T: 0}).xreplace(point) for u, e in eq.inputs.items()})
+    point.update({u: sp.sympify(e).xreplace({T: sp.Integer(0)}).xreplace(point) for u, e in eq.inputs.items()})
     point[T] = sp.Float(0)
 
     def num(M, wrt, rows):
@@ -90,13 +90,45 @@ def cmd_linearize(args) -> int:
     scene = load(args.file, _overrides(args.set))
     eq = pipeline.equations(scene)
     outputs = scene.outputs or eq.state_names
-    lin = linearize(eq, outputs)
+    try:
+        lin = linearize(eq, outputs)
+        bad = [f"matrix {m} has infinite or NaN entries" for m in "ABCD" if not np.all(np.isfinite(getattr(lin, m)))]
+    except (TypeError, ValueError, ArithmeticError) as exc:    # sympy cannot evaluate a derivative there
+        if isinstance(exc, MultipoleError):
+            raise
+        bad = [f"a derivative cannot be evaluated ({type(exc).__name__}: {str(exc).strip()[:100]})"]
+    if bad:
+        raise _not_linearizable(scene, outputs, bad[0])
     print(f"# {scene.name}: linearised at t = 0 about the initial state")
     print(lin.to_text())
     if args.bode:
         bode(lin, args.bode, scene.name)
         print(f"wrote {args.bode}")
     return 0
+
+
+def _not_linearizable(scene, outputs, what: str) -> RunError:
+    """The error for a Jacobian that is infinite or undefined at the operating point (``log(f)``,
+    ``1/f``, ``sqrt(f)`` or an ideal ``sign(f)`` law at f = 0, ``1/t`` at t = 0), naming the element
+    where the compiled Jacobian fails."""
+    from . import pipeline
+    from .simulate import model_failure
+    err = RunError("not_linearizable", f"the linear model is infinite or undefined at t = 0 about the initial "
+                   f"state: {what}", "linearise where the laws are smooth: give the states initial values away "
+                   "from a kink or singularity (e.g. omega0), or regularise the law (tanh instead of sign)",
+                   scene.path)
+    try:
+        model = pipeline.model(scene, outputs)
+        with np.errstate(all="ignore"):
+            model.jac(0.0, model.x0)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        failure = model_failure(model, exc) if not isinstance(exc, MultipoleError) else None
+        if failure is not None and failure.element in scene.element_lines:
+            err.message += f"; {failure.message}"
+            err.where = scene.where(element=failure.element)
+    except MultipoleError:
+        pass
+    return err
 
 
 def bode(lin: Linearization, path, title=""):

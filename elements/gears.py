@@ -63,6 +63,11 @@ def depends_on_phase(expr) -> bool:
     return expr is not None and any(s.name == "q" for s in sp.sympify(expr).free_symbols)
 
 
+def varies(expr) -> bool:
+    """True for a law of the mesh phase ``q`` or of the time ``t`` (a stiffness that is no constant)."""
+    return expr is not None and any(s.name in ("q", "t") for s in sp.sympify(expr).free_symbols)
+
+
 def _is_zero(x) -> bool:
     return x is None or (sp.sympify(x).is_number and float(x) == 0.0)
 
@@ -96,8 +101,9 @@ def cross_coupling(children: dict, connections: list, junction: str, ports: tupl
 
 
 def _stiffness(value, symbol, params):
-    """``symbol`` (and its value in ``params``) for a constant, or a C law for a phase-dependent value."""
-    if depends_on_phase(value):
+    """``symbol`` (and its value in ``params``) for a constant, or a C law for a value that depends on
+    the mesh phase or on the time."""
+    if varies(value):
         return mesh_phase_var(value) * LAW_Q
     params[symbol.name] = value
     return symbol
@@ -109,6 +115,8 @@ def _resolver(V):
         expr = sp.sympify(expr)
         subs = {}
         for s in expr.free_symbols:
+            if s.name == "t":
+                continue
             if s == PHI:
                 subs[s] = V.x("angle1.q")
             elif s == QN:
@@ -224,7 +232,7 @@ def spur_stage(r1, r2, level="ideal", internal=False, c=None, c_n=None, d=0.0, x
         value, name = (c, "c") if level == "elastic" else (c_n, "c_n")
         law = mesh_phase_var(value)
         quantities["stiffness"] = Quantity(
-            (lambda V: _resolver(V)(law)) if depends_on_phase(value) else (lambda V: V.param(name)),
+            (lambda V: _resolver(V)(law)) if varies(value) else (lambda V: V.param(name)),
             "N/m", "current mesh stiffness")
     ports = {"a": port_a, "b": "wheel2.a"}
     return Network("spur_stage", children, connections, ports, params=params, quantities=quantities,
@@ -264,7 +272,7 @@ def _normal_level(children, connections, params, quantities, signals, r1, r2, se
     cross_coupling(children, connections, "contact", ("n1", "n2"), _stiffness(c_n, _CN, params), d)
     connections += [["normal1.a", "contact.n1"], ["normal2.a", "contact.n2"]]
     signals["qn"] = "spring.q"
-    normal_force = (mesh_phase_var(c_n) if depends_on_phase(c_n) else _CN) * QN
+    normal_force = (mesh_phase_var(c_n) if varies(c_n) else _CN) * QN
     laws = []
     if mu is not None:
         params.update({"mu": mu, "v_reg": v_reg})

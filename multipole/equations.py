@@ -294,6 +294,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
     available, units = _available(analysis)
     eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
                    analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
+    _loops_at_start(eq)
     if analysis.demoted:
         report = _consistent_start(eq, analysis.demoted)
         if report is not None:
@@ -335,17 +336,77 @@ def evaluate_blocks(eq: Equations, t: float, x, wanted) -> dict:
             values.update(zip(b.variables, (float(v) for v in z)))
             mags.update(zip(b.variables, (float(v) for v in size)))
         else:
-            from scipy.optimize import fsolve
-            res = [sp.sympify(r).xreplace(values) for r in b.residuals]
-            fun = sp.lambdify([b.variables], res, "numpy")
-            jac = sp.lambdify([b.variables], sp.Matrix(res).jacobian(b.variables), "numpy")
-            z, _info, ok, _msg = fsolve(lambda z: np.asarray(fun(z), dtype=float), np.zeros(len(b.variables)),
-                                        fprime=lambda z: np.asarray(jac(z), dtype=float), full_output=True)
-            if ok != 1:
-                raise ArithmeticError(f"Newton did not converge for {', '.join(map(str, b.variables))}")
+            z = _newton_block(b, values)
             values.update(zip(b.variables, (float(v) for v in z)))
             mags.update(zip(b.variables, (abs(float(v)) for v in z)))
     return {v: (values[v], mags[v]) for v in wanted}
+
+
+class LoopFailure(ArithmeticError):
+    """A nonlinear algebraic loop without a unique solution at the point evaluated."""
+
+    def __init__(self, block: Block, reason: str):
+        self.block = block
+        self.reason = reason
+        super().__init__(reason)
+
+
+def _newton_block(b: Block, values: dict):
+    """Solve a nonlinear block at known ``values`` of everything else (scipy's hybrid Newton from a
+    few starts); :class:`LoopFailure` if no start converges or the loop's Jacobian is singular at
+    the solution (the unknowns are not determined there)."""
+    from scipy.optimize import fsolve
+    res = [sp.sympify(r).xreplace(values) for r in b.residuals]
+    if any(r.free_symbols - set(b.variables) for r in res):
+        raise ArithmeticError("the loop needs values that are not available")
+    fun = sp.lambdify([b.variables], res, "numpy")
+    jac = sp.lambdify([b.variables], sp.Matrix(res).jacobian(b.variables), "numpy")
+
+    def f(z):
+        return np.asarray(fun(z), dtype=float)
+
+    def fprime(z):
+        return np.asarray(jac(z), dtype=float).reshape(len(res), len(z))
+    n = len(b.variables)
+    rng = np.random.default_rng(0)
+    starts = [np.zeros(n), np.ones(n), -np.ones(n)] + [rng.normal(scale=10.0, size=n) for _ in range(3)]
+    for z0 in starts:
+        with np.errstate(all="ignore"):
+            z, _info, ok, _msg = fsolve(f, z0, fprime=fprime, full_output=True)
+            if ok != 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(f(z))):
+                continue
+            J = fprime(z)
+        if not np.all(np.isfinite(J)):
+            continue
+        norms = np.linalg.norm(J, axis=0)
+        sv = np.linalg.svd(J / np.where(norms > 0, norms, 1.0), compute_uv=False)
+        if norms.min() == 0 or sv.min() <= 1e-12 * sv.max():
+            raise LoopFailure(b, "its Jacobian is singular there, so the loop leaves its unknowns undetermined")
+        return z
+    raise LoopFailure(b, "its equations have no solution there (Newton's method converged from none of "
+                      f"{len(starts)} starts)")
+
+
+def _loops_at_start(eq: Equations) -> None:
+    """Refuse a nonlinear algebraic loop that has no unique solution at t = 0 in the initial state:
+    the generated code's Newton iteration would stop the run at its first evaluation (a massless
+    shaft whose only connection is a saturating friction law, say, with no normal force yet)."""
+    wanted = [v for b in eq.blocks if b.kind == "newton" for v in b.variables]
+    if not wanted:
+        return
+    try:
+        evaluate_blocks(eq, 0.0, eq.initial_values(), wanted)
+    except LoopFailure as exc:
+        b = exc.block
+        els = sorted({eq.analysis.flat.element_of(o) for o in b.owners})
+        err = IllPosedError("singular_loop", f"the nonlinear algebraic loop through {', '.join(els)} has no "
+                            f"unique solution at t = 0 in the initial state: {exc.reason}",
+                            f"give the massless part next to {els[0]} an inertia, or {els[0]} a law that is "
+                            "strictly monotonic over the whole range (a viscous part, damping)")
+        err.variables, err.owners = b.variables, b.owners      # for the check's wording (multipole.checks)
+        raise err from None
+    except (ArithmeticError, TypeError, ValueError, np.linalg.LinAlgError):
+        return                      # not computable here (an input undefined at t = 0): the run will tell
 
 
 def _real(expr) -> float:

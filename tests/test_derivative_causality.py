@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from helpers import check, run
+from helpers import check, run, scene
+from multipole import pipeline
 
 GEARED = """
 name: geared
@@ -108,3 +109,55 @@ def test_parallel_capacitors_add_up():
     assert np.max(np.abs(res["Ca.v"] - v)) / v0 <= 1e-7
     assert np.allclose(res["Ca.v"], res["Cb.v"], rtol=1e-12, atol=1e-12)
     assert np.allclose(res["Cb.i"], C2 / C1 * res["Ca.i"], rtol=1e-8, atol=1e-12)
+
+
+def test_inconsistent_initial_speeds_are_made_consistent_and_reported():
+    """J_2 starts at 1.5 rad/s, J_1 (joined rigidly, ω1 = i·ω2) at rest: the analyser keeps the given
+    value of the integrated inertia and computes the one in derivative causality from the gear
+    constraint at t = 0, p1 = J1·i·ω2(0) (the given 0 is replaced), and says so (info); the run then
+    starts there and follows ω2 = ω2(0) + T·t/J_eff."""
+    J1, J2, i, T, w0 = 0.01, 0.3, 4.0, 2.0, 1.5
+    text = _geared(False).replace("J_2:   {type: inertia, J: J2}", f"J_2:   {{type: inertia, J: J2, omega0: {w0}}}")
+    eq = pipeline.equations(scene(text))
+    made = [d for d in eq.diagnostics if "made consistent" in d.message]
+    assert len(made) == 1 and made[0].severity == "info" and made[0].elements == ["J_1"]
+    assert f"J_1.p = {J1 * i * w0:g} N*m*s (given 0)" in made[0].message
+    res = run(text)
+    assert np.allclose(res["J_2.omega"], w0 + T * res.t / (J2 + i**2 * J1), rtol=1e-9)
+    assert np.allclose(res["J_1.omega"], i * res["J_2.omega"], rtol=1e-12)
+    consistent = _geared(False)
+    assert not [d for d in pipeline.equations(scene(consistent)).diagnostics if "made consistent" in d.message]
+
+
+MASSLESS_PINION = """
+name: massless_pinion
+elements:
+  motor:   {type: torque_source, value: "2*(1 - exp(-t/0.05))"}
+  mesh:    {type: spur_stage, r1: 0.02, r2: 0.06, level: normal, c_n: 2.0e8, d: DAMPING, z1: 20, mu: 0.05,
+            v_reg: 1.0e-4}
+  wheel:   {type: inertia, J: 2.0e-2}
+  load:    {type: damper, d: 0.2}
+  housing: {type: ground}
+connections:
+  - [motor.p, mesh.a]
+  - [mesh.b, wheel.a]
+  - [wheel.b, load.a]
+  - [load.b, housing.p]
+outputs: [wheel.omega, mesh.force]
+simulate: {t_end: 0.02, dt_out: 1.0e-4, rtol: 1.0e-6, atol: 1.0e-10}
+"""
+
+
+def test_massless_pinion_with_coulomb_teeth_is_refused_when_its_loop_has_no_solution():
+    """A torque on a massless pinion meshing through Coulomb tooth friction and an undamped tooth
+    spring: at t = 0 the normal force is 0, so nothing fixes the sliding velocity (the friction
+    law's slope μ·|F_n|/v_reg is 0) and no sliding velocity gives a tangential force with
+    |F_t| > μ·|F_n| afterwards.  Refused by check and simulate in one line naming the mesh (exit 1),
+    instead of a Newton failure in the run; with mesh damping the loop is solvable and it runs."""
+    from multipole.errors import IllPosedError
+    with pytest.raises(IllPosedError) as exc:
+        pipeline.equations(scene(MASSLESS_PINION.replace("DAMPING", "0.0")))
+    assert exc.value.code == "singular_loop" and "through mesh " in exc.value.message
+    res = run(MASSLESS_PINION.replace("DAMPING", "100.0"))
+    assert res.t[-1] == pytest.approx(0.02) and np.all(np.isfinite(res["wheel.omega"]))
+    assert res["wheel.omega"][-1] < 0 < res["mesh.force"][-1]       # the wheel turns the other way

@@ -177,6 +177,47 @@ def test_time_varying_mesh_stiffness_gives_the_quasi_static_transmission_error()
     assert np.allclose(res["mesh.stiffness"], c0 * (1 + eps * np.cos(res["mesh.phase"])), rtol=1e-12)
 
 
+def test_time_varying_mesh_stiffness_equals_the_mesh_built_from_primitives():
+    """A stiffness that varies with time, c(t) = c0·(1 + ε·cos(W·t)) (a parametric excitation, not a
+    law of the mesh phase), runs and gives the motion of the same mesh written from primitives:
+    wheel transducers 1/r1 and −1/r2, a type-a junction and a C with the law c(t)·q."""
+    law = "c0*(1 + eps*cos(W*t))"
+    head = f"""
+    parameters: {{c0: 1.0e8, eps: 0.3, W: 900.0}}
+    simulate: {{t_end: 0.03, dt_out: 1.0e-5, rtol: 1.0e-10, atol: 1.0e-12}}
+    """
+    drive = dict(shaft_a="{type: torque_source, value: '5*(1 - exp(-t/0.002))'}",
+                 shaft_b="{type: torque_source, value: '-8*(1 - exp(-t/0.004))'}")
+    stage = scene(head + stage_scene(f'{{type: spur_stage, r1: {R1}, r2: {R2}, level: elastic, c: "{law}"}}', **drive,
+                                     outputs="[pinion.omega, wheel.omega, mesh.force, mesh.stiffness]"))
+    parts = head + f"""
+    elements:
+      src_a:  {drive["shaft_a"]}
+      pinion: {{type: inertia, J: 1.0e-3}}
+      wheel1: {{type: TF, ratio: {1 / R1}, domain_b: translational}}
+      contact: {{type: junction_a, ports: [u1, u2, k], signs: [1, -1, -1], domain: translational}}
+      spring: {{type: C, law: "{law}*q", domain: translational}}
+      wheel2: {{type: TF, ratio: {-1 / R2}, domain_b: translational}}
+      wheel:  {{type: inertia, J: 2.0e-2}}
+      src_b:  {drive["shaft_b"]}
+    connections:
+      - [src_a.p, pinion.a]
+      - [pinion.b, wheel1.a]
+      - [wheel1.b, contact.u1]
+      - [contact.k, spring.p]
+      - [contact.u2, wheel2.b]
+      - [wheel2.a, wheel.a]
+      - [wheel.b, src_b.p]
+    outputs: [pinion.omega, wheel.omega, contact.u1.e]
+    """
+    ref = pipeline.run(scene(parts), progress=False)
+    res = pipeline.run(stage, progress=False)
+    for out, other in (("pinion.omega", "pinion.omega"), ("wheel.omega", "wheel.omega"), ("mesh.force", "contact.u1.e")):
+        scale = np.abs(ref[other]).max()
+        assert scale > 0 and np.max(np.abs(res[out] - ref[other])) <= 1e-6 * scale, out
+    assert np.allclose(res["mesh.stiffness"], 1e8 * (1 + 0.3 * np.cos(900.0 * res.t)), rtol=1e-12)
+
+
 def _wrapped_table(q, points, values):
     """The stiffness table evaluated independently: distance of q from the middle of the tooth
     engagement, |q mod 2π| in [0, π], then straight lines through the points (numpy)."""

@@ -460,19 +460,27 @@ def element_of(variable: str) -> str:
     return inner.split(".", 1)[0]
 
 
-def _assigned(model, lineno: int) -> tuple[str, str] | None:
+def _assigned(model, lineno: int) -> tuple[str, str | None] | None:
     """(variable name, code) of the assignment at ``lineno`` of the generated source, or of the
-    first named variable a helper line (common subexpression, loop matrix) feeds."""
+    first named variable a helper line (common subexpression, loop matrix) feeds; for a line that
+    feeds no named variable (a Jacobian entry), the first named variable it reads, and no code."""
     names = _variable_names(model)
     lines = model.source.splitlines()
+
+    def readable(code):        # identifiers of the generated code -> the user's variable names
+        return re.sub(r"\b\w+\b", lambda m: names.get(m.group(), m.group()), code.replace("math.", ""))
     for line in lines[lineno - 1:]:
         if line.startswith("def ") or line.strip().startswith("return"):
-            return None
+            break
         m = re.match(r"\s+([\w, ]+?),? = (.*)", line)
         if m:
             for ident in m.group(1).split(","):
                 if ident.strip() in names:
-                    return names[ident.strip()], m.group(2).strip()
+                    return names[ident.strip()], readable(m.group(2).strip())
+    if 0 < lineno <= len(lines):
+        read = [names[w] for w in re.findall(r"\b\w+\b", lines[lineno - 1].split("=", 1)[-1]) if w in names]
+        if read:
+            return read[0], None
     return None
 
 
@@ -496,9 +504,11 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
         found = _assigned(model, lineno)
         if found:
             name, code = found
-            code = code.replace("math.", "")
-            code = code if len(code) <= 80 else code[:77] + "..."
-            where, element = f"{name} = {code}", element_of(name)
+            if code is None:
+                where = f"{_FUNCTIONS.get(frame.f_code.co_name, 'the model')} near {name}"
+            else:
+                where = f"{name} = {code if len(code) <= 80 else code[:77] + '...'}"
+            element = element_of(name)
             break
     where = where or function or "the model"
     when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
@@ -637,27 +647,30 @@ def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: floa
     return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events, units)
 
 
-def check_finite(model, t_grid, states, outs) -> None:
+def check_finite(t_grid, states, outs, state_names, output_names, model=None) -> None:
     """Refuse sampled states or outputs that are infinite or NaN, naming the first time and the
-    variable and element responsible (both backends)."""
-    for what, data in (("state", states), ("output", outs)):
+    variable and element responsible (both backends; with the compiled ``model``, an output is
+    traced to the first non-finite variable of the evaluation order)."""
+    for what, data, names in (("state", states, state_names), ("output", outs, output_names)):
         bad = ~np.isfinite(data)
         if bad.any():
             row, col = np.argwhere(bad)[0]
-            name = (model.state_names if what == "state" else model.output_names)[col]
-            cause, element = locate_non_finite(model, t_grid[row], states[row]) if what == "output" else \
-                ("", element_of(name))
-            raise _failed(model, "not_finite", f"{what} {name} became infinite or NaN at t = {t_grid[row]:.6g} s"
-                          + (f" ({cause})" if cause else ""),
-                          "check parameters (zero inertia? negative stiffness?), the laws' domains "
-                          "and the check report", element or element_of(name))
+            var = names[col]
+            cause, element = locate_non_finite(model, t_grid[row], states[row]) \
+                if what == "output" and model is not None else ("", None)
+            err = SimulationError("not_finite", f"{what} {var} became infinite or NaN at t = {t_grid[row]:.6g} s"
+                                  + (f" ({cause})" if cause else ""),
+                                  "check parameters (zero inertia? negative stiffness?), the laws' domains "
+                                  "and the check report", f"element '{element or element_of(var)}'")
+            err.element = element or element_of(var)
+            raise err
 
 
 def sample_outputs(model, t_grid, states) -> np.ndarray:
     """The outputs on the grid, shape ``(len(t_grid), n_outputs)``; non-finite values refused."""
     outs = np.array([model.outputs(tt, xx) for tt, xx in zip(t_grid, states)]) if model.output_names else \
         np.empty((len(t_grid), 0))
-    check_finite(model, t_grid, states, outs)
+    check_finite(t_grid, states, outs, model.state_names, model.output_names, model)
     return outs
 
 

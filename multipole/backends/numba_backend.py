@@ -51,7 +51,7 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
 from .. import cache, codegen
-from ..simulate import Result, SimulationError, _Progress, choose_solver
+from ..simulate import Result, SimulationError, _Progress, check_finite, choose_solver, output_grid
 from . import numba_kernels as K
 from . import register_backend
 
@@ -438,19 +438,6 @@ def _compile(module, n: int, n_switches: int) -> bool:
     return misses == 0 and all(f.cache_hits for f in (module.rhs, module.jac, module.switches, module.outputs))
 
 
-def output_grid(t_end: float, dt_out: float | None) -> np.ndarray:
-    """0, dt_out, 2 dt_out, ... and ``t_end`` itself (both ends included) [s]."""
-    dt_out = dt_out or t_end / 500
-    n_out = int(round(t_end / dt_out))
-    if abs(n_out * dt_out - t_end) > 1e-9 * t_end:
-        n_out = int(np.floor(t_end / dt_out))
-    grid = np.arange(n_out + 1) * dt_out
-    if abs(grid[-1] - t_end) > 1e-9 * t_end:
-        grid = np.append(grid, t_end)
-    grid[-1] = min(grid[-1], t_end)
-    return grid
-
-
 class _JacobianView:
     """What :func:`choose_solver` needs: ``x0`` and ``jac(t, x)`` backed by the compiled Jacobian."""
 
@@ -502,7 +489,7 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
         return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
     compile_time = time.perf_counter() - start
 
-    grid = output_grid(t_end, dt_out)
+    grid = output_grid(t_end, dt_out, 1 + n + len(outputs))
     rtol = max(rtol, 100 * np.finfo(float).eps)
     work = _Work(n, len(switch_text), module.N_WORK, grid, x0, t_end, rtol, atol, max_step)
     funcs = _cfuncs(module) + (method == "Radau",)
@@ -534,9 +521,7 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     if outputs:
         K.sample(module.outputs.address, work.w, grid, work.X, Y)
     run_time = time.perf_counter() - begin
-    if not np.all(np.isfinite(work.X)):
-        code, msg, fix = _STATUS[K.NOT_FINITE]
-        raise SimulationError(code, msg, fix)
+    check_finite(grid, work.X, Y, list(equations.state_names), outputs)
     iw = work.iw
     stats = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
              "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),

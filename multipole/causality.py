@@ -21,7 +21,9 @@ Works on the equations of a :class:`~multipole.network.FlatNetwork`:
    says it.
 
 The result is an :class:`Analysis`: the final equations, their assignment, the states that are
-integrated, the demoted ones and the diagnostics.
+integrated, the demoted ones and the *findings* (:class:`Finding`, internal names).  This module is
+the algorithm only: the registered checks of :mod:`multipole.checks` turn the findings into the
+diagnostics the user reads.
 """
 from __future__ import annotations
 
@@ -32,7 +34,7 @@ import networkx as nx
 import numpy as np
 import sympy as sp
 
-from .diagnostics import Diagnostic
+from .diagnostics import run_checks
 from .network import Equation, FlatNetwork, State, var
 from .primitives import T
 
@@ -63,15 +65,34 @@ def placeholder_needs(prim) -> tuple[str, str] | None:
     return needs.strip(), fix if isinstance(fix, str) else ""
 
 
-def _listing(names) -> str:
-    """``a``, ``a and b``, ``a, b and c``."""
-    names = list(names)
-    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
-
-
 def der(sym: sp.Symbol) -> sp.Symbol:
     """Symbol for the time derivative of ``sym``."""
     return var(f"der({sym.name})")
+
+
+@dataclass
+class Finding:
+    """A structural fact the analyser found, in internal names; :mod:`multipole.checks` words it.
+
+    ``kind``: ``redundant`` (equations that repeat each other with nothing to absorb them),
+    ``locked`` (the rigid constraints of a locked loop), ``impulse`` (a differentiated equation
+    whose input has a step), ``demoted`` (equations resolved by putting ``states`` into derivative
+    causality), ``overdetermined`` (equations left over), ``undetermined`` (``variables`` nothing
+    determines), ``placeholder`` (a placeholder primitive at ``path`` reached by undetermined
+    ``variables``; ``words`` = (needs, fix), ``sums`` = the nearest junctions and nodes).
+    """
+
+    kind: str
+    equations: list = field(default_factory=list)
+    states: list = field(default_factory=list)
+    variables: list = field(default_factory=list)
+    path: str = ""
+    words: tuple = ("", "")
+    sums: list = field(default_factory=list)
+
+
+#: findings that make the network ill-posed (the analyser stops resolving after one)
+ERROR_FINDINGS = ("redundant", "locked", "impulse", "overdetermined", "undetermined", "placeholder")
 
 
 @dataclass
@@ -86,6 +107,8 @@ class Analysis:
     demoted: list              # State objects put into derivative causality
     aliases: dict              # port variable -> (representative, sign)
     diagnostics: list = field(default_factory=list)
+    findings: list = field(default_factory=list)   # Finding objects, worded by multipole.checks
+    assembled: object = field(default=None, repr=False)  # Equations, when the pipeline's check built them
     _alias_map: dict | None = field(default=None, repr=False)
 
     @property
@@ -237,7 +260,7 @@ def _match(adj: list, order: list):
 class _Analyser:
     def __init__(self, flat: FlatNetwork, samples: int = 12, seed: int = 1):
         self.flat = flat
-        self.diagnostics: list[Diagnostic] = []
+        self.findings: list[Finding] = []
         self.values = flat.param_values()
         self.rng = np.random.default_rng(seed)
         self.n_samples = samples
@@ -398,7 +421,6 @@ class _Analyser:
     # -- main ------------------------------------------------------------------------------------
     def run(self):
         self.build()
-        self.unconnected()
         for _round in range(4):
             self.match()
             groups = self.over_groups()
@@ -415,27 +437,19 @@ class _Analyser:
             self.match()
         leftover = self.over_groups()
         if leftover and not self.errors():
-            owners = sorted({self.flat.element_of(self.equations[i].owner) for eqs, _ in leftover for i in eqs})
-            self.diagnostics.append(Diagnostic(
-                "overdetermined", f"the equations of {', '.join(owners)} impose more than they can "
-                "(structurally over-determined) and the analyser found no storage to resolve it",
-                "look for two rigid paths or two sources acting on the same variable", elements=owners))
+            self.findings.append(Finding("overdetermined", sorted({i for eqs, _ in leftover for i in eqs})))
         if not self.errors():
             missing, reach = self.under_vars()
             if missing:
-                missing = self.report_placeholders(missing, reach)
+                missing = self.find_placeholders(missing, reach)
             if missing:
-                self.report_under(missing)
+                self.findings.append(Finding("undetermined", variables=sorted(missing, key=lambda v: v.name)))
         integrated = [s for s in self.states if s not in self.demoted]
-        self.diagnostics.append(Diagnostic(
-            "degrees_of_freedom",
-            f"{len(integrated)} state(s) integrated: {', '.join(s.name for s in integrated) or 'none'}"
-            + (f"; in derivative causality: {', '.join(s.name for s in self.demoted)}" if self.demoted else "")))
         return Analysis(self.flat, self.equations, dict(self.m_eq), self.unknowns, integrated,
-                        self.demoted, self.aliases, self.diagnostics)
+                        self.demoted, self.aliases, findings=self.findings)
 
     def errors(self):
-        return [d for d in self.diagnostics if d.severity == "error"]
+        return [f for f in self.findings if f.kind in ERROR_FINDINGS]
 
     def resolve_group(self, eq_ids, alg) -> bool:
         """Resolve one over-determined group; True if the system changed (states demoted)."""
@@ -453,7 +467,7 @@ class _Analyser:
         rank_c = N.shape[1] - W.shape[1]
         for col in W.T:
             support = [eq_ids[k] for k in np.nonzero(np.abs(col) > 1e-8 * np.abs(col).max())[0]]
-            self.report_redundancy(support)
+            self.findings.append(Finding("redundant", support))
         if rank_c == 0:
             return False
         if W.shape[1] == 0 and self.locked(eq_ids, alg):
@@ -505,15 +519,7 @@ class _Analyser:
         Jk = self.jacobians(kin, vs, [])[0][0]
         if np.linalg.matrix_rank(Jk, tol=1e-9 * max(np.abs(Jk).max(), 1e-300)) < len(vs):
             return False
-        path = self.loop_path([self.equations[i].owner for i in kin])
-        self.diagnostics.append(Diagnostic(
-            "locked_loop",
-            "locked loop: the rigid couplings " + ", ".join(sorted({self.flat.element_of(self.equations[i].owner)
-                                                                   for i in kin}))
-            + " impose inconsistent ratios around the loop, so it admits only standstill "
-              "(kinematic over-determination with no consistent motion)",
-            "check the ratios (their product around the loop must be 1) or make one coupling in this loop elastic",
-            elements=sorted({self.flat.element_of(self.equations[i].owner) for i in kin}), path=path))
+        self.findings.append(Finding("locked", kin))
         return True
 
     def choose_demotions(self, eq_ids, alg, stvars, samples, count, rates=None):
@@ -613,114 +619,13 @@ class _Analyser:
                 elif v in self.flat.inputs:
                     total += sp.diff(e, v) * sp.diff(self.flat.inputs[v], T)
             if total.has(sp.DiracDelta):
-                self.diagnostics.append(Diagnostic(
-                    "input_differentiation",
-                    f"{self.flat.element_of(eq.owner)}: resolving the rigid coupling needs d/dt of its input "
-                    f"{eq.note or eq.expr}, which contains a step or pulse: the effort would be an impulse",
-                    "give the input a finite rise time (ramp or smooth function) or make the coupling elastic",
-                    elements=[self.flat.element_of(eq.owner)]))
+                self.findings.append(Finding("impulse", [i]))
             self.equations.append(Equation(sp.expand(total), eq.owner, "differentiated", None, "d/dt " + eq.note))
             owners.append(eq.owner)
         self.unknowns += new_unknowns
-        elements = sorted({self.flat.element_of(o) for o in owners})
-        kinds = {states[s].owner: self.flat.primitives[states[s].owner].kind for s in chosen}
-        what = "an effective inertia" if all(k == "I" for k in kinds.values()) else \
-            "an effective compliance" if all(k in ("C", "CField") for k in kinds.values()) else \
-            "effective storage"
-        self.diagnostics.append(Diagnostic(
-            "derivative_causality",
-            f"storage joined rigidly through {', '.join(elements)}: "
-            f"{', '.join(s.name for s in chosen)} in derivative causality, resolved into {what} "
-            f"(constrained-state form)", elements=elements))
+        self.findings.append(Finding("demoted", list(eq_ids), states=list(chosen)))
 
-    # -- reports ---------------------------------------------------------------------------------
-    def element_graph(self):
-        """Bipartite graph of top-level elements and the nodes joining them."""
-        g = nx.Graph()
-        for node in self.flat.nodes:
-            if node.origin != "connection":
-                continue
-            for p in node.ports:
-                g.add_edge(("n", node.name), ("el", self.flat.element_of(p)))
-        return g
-
-    def loop_path(self, owners):
-        """The loop through the elements owning ``owners``, as element names (nodes shown by a
-        neighbour outside the loop, e.g. the shaft inertia)."""
-        els = {self.flat.element_of(o) for o in owners}
-        g = self.element_graph()
-        best = []
-        for cyc in nx.cycle_basis(g):
-            members = {n for k, n in cyc if k == "el"}
-            if len(els & members) > len(els & {n for k, n in best if k == "el"}):
-                best = cyc
-        if not best:
-            return sorted(els)
-        loop_elements = {n for k, n in best if k == "el"}
-        names = []
-        for k, n in best:
-            if k == "el":
-                names.append(n)
-                continue
-            outside = sorted({m for kk, m in g.neighbors((k, n)) if m not in loop_elements})
-            names.append(outside[0] if outside else n)
-        start = next((i for i, (k, _) in enumerate(best) if k == "n"), 0)
-        names = names[start:] + names[:start]
-        return names + names[:1]
-
-    def report_redundancy(self, support):
-        eqs = [self.equations[i] for i in support]
-        owners = [e.owner for e in eqs]
-        elements = sorted({self.flat.element_of(o) for o in owners})
-        sources = sorted({self.flat.element_of(e.owner) for e in eqs if e.role == "source"})
-        kinds = {s.name.rsplit(".", 1)[1] for e in eqs for s in e.expr.free_symbols if "." in s.name}
-        flows = "f" in kinds and "e" not in kinds
-        if sources:
-            dom = self.flat.port_domains[next(p for p in self.flat.port_domains
-                                              if self.flat.element_of(p) == sources[0])]
-            word = dom.flow if flows else dom.effort
-            other = dom.effort if flows else dom.flow
-            self.diagnostics.append(Diagnostic(
-                "source_conflict",
-                f"{_listing(sources)} {'both' if len(sources) == 2 else 'all'} impose the {word} on the same "
-                + (("rigid node" if flows else "massless node") if dom.node_kind == "b"
-                   else ("series branch" if flows else "node"))
-                + f" ({' + '.join(elements)}): {'kinematic' if flows else 'static'} over-determination; "
-                f"the {other} there is left undetermined ({'static' if flows else 'kinematic'} under-determination)",
-                f"remove one source or put {dom.compliance} between them" if flows else
-                f"put {dom.inertia} between the sources or drive one side with a {dom.flow} source instead",
-                elements=elements))
-            return
-        path = self.loop_path(owners)
-        dom = next(iter(self.flat.port_domains.values()))
-        if flows:
-            self.diagnostics.append(Diagnostic(
-                "kinematic_overdetermination",
-                f"kinematic over-determination: the rigid loop through {', '.join(elements)} imposes the same "
-                f"{dom.flow} twice (consistent ratios); static under-determination: nothing decides how the "
-                f"{dom.effort} splits between the parallel paths",
-                "make one coupling in this loop elastic", elements=elements, path=path))
-        else:
-            self.diagnostics.append(Diagnostic(
-                "static_overdetermination",
-                f"static over-determination: the {dom.effort} around {', '.join(elements)} is imposed twice; "
-                f"kinematic under-determination: nothing decides how the {dom.flow} splits",
-                f"add a storage element ({dom.inertia} or {dom.compliance}) in this loop", elements=elements,
-                path=path))
-
-    def report_under(self, missing):
-        names = sorted(v.name for v in missing)
-        ports = sorted({n.rsplit(".", 1)[0] for n in names if "." in n})
-        electrical = all(self.flat.port_domains.get(p) is not None and self.flat.port_domains[p].name in
-                         ("electrical", "hydraulic") and n.endswith(".e") for n, p in zip(names, [
-                             n.rsplit(".", 1)[0] for n in names]))
-        self.diagnostics.append(Diagnostic(
-            "underdetermined",
-            f"nothing determines {', '.join(names[:6])}{' …' if len(names) > 6 else ''}",
-            "add a ground (reference potential) to the circuit" if electrical else
-            "add a storage element, a source or a ground where these variables live",
-            elements=sorted({self.flat.element_of(p) for p in ports}), ports=ports))
-
+    # -- findings for the checks ---------------------------------------------------------------------
     def nearest_sums(self, start, reach) -> list:
         """The junctions (and nodes) nearest to the variables ``start`` whose sums use them, found by
         walking through the equations of the under-determined part ``reach`` (transformers are
@@ -747,8 +652,8 @@ class _Analyser:
                         queue.append(w)
         return found
 
-    def report_placeholders(self, missing, reach) -> list:
-        """Report the placeholders the under-determined part reaches (see :func:`placeholder_needs`);
+    def find_placeholders(self, missing, reach) -> list:
+        """Record the placeholders the under-determined part reaches (see :func:`placeholder_needs`);
         return the under-determined variables none of them explains."""
         found = []
         for path, prim in self.flat.primitives.items():
@@ -766,41 +671,13 @@ class _Analyser:
         if not found:
             return missing
         explained = set()
-        for path, (needs, fix), hit, reps in found:
-            element = self.flat.element_of(path)
-            owner = path.rsplit(".", 1)[0] if "." in path else path
-            names, nouns = [], set()
-            for sym in hit:
-                dom = self.flat.port_domains[sym.name.rsplit(".", 1)[0]]
-                noun = dom.effort if sym.name.endswith(".e") else dom.flow
-                nouns.add(noun)
-                names.append(f"the {noun} {sym.name}")
+        for path, words, hit, reps in found:
             sums = self.nearest_sums([self.aliases.get(sym, (sym, 1))[0] for sym in hit], reach)
-            where = (f"the {'/'.join(sorted(nouns))} sums at {' and '.join(sums)} are" if sums else
-                     "the junctions that need it are")
-            self.diagnostics.append(Diagnostic(
-                "missing_cross_coupling",
-                f"{element}: {needs}. Nothing determines {' and '.join(names)}, so {where} one input short "
-                f"(under-determined)",
-                fix.format(element=element, owner=owner) if fix else
-                f"complete {element} so that {path} is a cross-coupling (I, R or C)",
-                elements=[element], ports=sorted({s.name.rsplit(".", 1)[0] for s in hit})))
+            self.findings.append(Finding("placeholder", variables=hit, path=path, words=words, sums=sums))
             for v in missing:
                 if self.reach_of([v]) & reps:
                     explained.add(v)
         return [v for v in missing if v not in explained]
-
-    def unconnected(self):
-        for node in self.flat.nodes:
-            if node.origin != "termination":
-                continue
-            pp = node.ports[0]
-            ext = [k for k, v in self.flat.external_ports.items() if v == pp]
-            if ext:
-                self.diagnostics.append(Diagnostic(
-                    "unconnected_port",
-                    f"{ext[0]} is not connected: {'free end (effort 0)' if node.domain.free_variable == 'e' else 'open (flow 0)'}",
-                    elements=[ext[0].split('.')[0]], ports=ext))
 
 
 class _Rates:
@@ -860,6 +737,14 @@ class _Rates:
             w = v
 
 
-def analyse(flat: FlatNetwork) -> Analysis:
-    """Run the causality analysis on a flat network."""
-    return _Analyser(flat).run()
+def analyse(flat: FlatNetwork, diagnose: bool = True) -> Analysis:
+    """Run the causality analysis on a flat network.
+
+    With ``diagnose`` the structural checks of :mod:`multipole.checks` word the findings into
+    ``analysis.diagnostics``; :func:`multipole.pipeline.check` passes False and runs every check
+    itself (those that need the assembled equations too)."""
+    from .checks import Context
+    analysis = _Analyser(flat).run()
+    if diagnose:
+        analysis.diagnostics = run_checks(Context(analysis), stages=("structure",))
+    return analysis

@@ -1,52 +1,79 @@
-"""Diagnostics: what the causality analyser found, in Weber's words, with a suggested fix.
+"""Diagnostics: what the check found, in the user's words, with a suggested fix.
 
-A diagnostic has a ``code`` from :data:`CATALOGUE`, a ``severity`` (``error`` makes ``check``
-exit 1; ``warning`` and ``info`` do not), the elements and ports involved (a loop is listed as a
-path), a plain-language ``message`` and a ``fix``.
+A diagnostic has a ``code``, a ``severity`` (``error`` makes ``check`` exit 1; ``warning`` and
+``info`` do not), the elements and ports involved (a loop is listed as a path), a plain-language
+``message`` and a ``fix``.
+
+Every code belongs to a registered check (:func:`register`): its severity, what it means and the
+function that produces its findings.  :func:`run_checks` runs them in registration order, which
+is also the order ``multipole check`` prints them in; the checks themselves are in
+:mod:`multipole.checks`.  Adding a diagnostic is one decorated function there.
 """
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from typing import Callable
 
-#: code -> (severity, what it means)
-CATALOGUE: dict[str, tuple[str, str]] = {
-    "kinematic_overdetermination": (
-        "error", "a rigid loop imposes a flow twice (consistent ratios): the junction gets two flow "
-                 "inputs and its effort sum is one input short — static under-determination"),
-    "static_overdetermination": (
-        "error", "the dual: an effort is imposed twice and the corresponding flow is undetermined"),
-    "locked_loop": (
-        "error", "a rigid loop with inconsistent ratios: the only motion it admits is standstill"),
-    "source_conflict": (
-        "error", "two sources impose the same variable (or the balance of a massless node)"),
-    "overdetermined": (
-        "error", "equations that impose more than they can, with no storage to resolve it"),
-    "underdetermined": (
-        "error", "variables no equation determines"),
-    "missing_cross_coupling": (
-        "error", "variables no equation determines because a branch ends where the element's "
-                 "structure needs a cross-coupling the parameters leave out; the element names it "
-                 "and says how to add it"),
-    "derivative_causality": (
-        "info", "storage elements coupled rigidly: one is put into derivative causality and "
-                "resolved into an effective inertia or compliance"),
-    "algebraic_loop": (
-        "info", "a loop without storage: solved symbolically when linear, by Newton otherwise"),
-    "input_differentiation": (
-        "error", "resolving derivative causality needs the time derivative of an input that has "
-                 "none (a step or a pulse): the response would be an impulse"),
-    "singular_loop": (
-        "error", "an algebraic loop whose equations are singular: it has no unique solution"),
-    "unconnected_port": (
-        "info", "a port nobody connected takes its default termination"),
-    "degrees_of_freedom": (
-        "info", "the states the simulation integrates"),
-}
+SEVERITIES = ("error", "warning", "info")
+
+
+@dataclass(frozen=True)
+class Check:
+    """A registered check: the diagnostic ``code`` it reports, its ``severity``, what the code
+    means, and ``run(context) -> iterable of Diagnostic``.  ``stage`` is ``"structure"`` (needs the
+    causality analysis only) or ``"equations"`` (needs the assembled equations: runs only when the
+    structural checks found no error and the caller can assemble them)."""
+
+    code: str
+    severity: str
+    meaning: str
+    run: Callable
+    stage: str = "structure"
+
+
+#: code -> Check, in registration (= report) order
+REGISTRY: dict[str, Check] = {}
+
+#: code -> (severity, what it means); kept in step with :data:`REGISTRY`
+CATALOGUE: dict[str, tuple[str, str]] = {}
+
+
+def register(code: str, severity: str, meaning: str, stage: str = "structure"):
+    """Decorator registering ``run(context)`` as the check that reports ``code``."""
+    if severity not in SEVERITIES:
+        raise ValueError(f"severity of {code!r} must be one of {SEVERITIES}")
+    if stage not in ("structure", "equations"):
+        raise ValueError(f"stage of {code!r} must be 'structure' or 'equations'")
+
+    def deco(run):
+        if code in REGISTRY:
+            raise ValueError(f"diagnostic code {code!r} is registered twice")
+        REGISTRY[code] = Check(code, severity, meaning, run, stage)
+        CATALOGUE[code] = (severity, meaning)
+        return run
+    return deco
+
+
+def run_checks(context, stages=("structure", "equations")) -> list:
+    """Run the registered checks of ``stages`` on ``context`` (see :class:`multipole.checks.Context`)
+    and return their diagnostics in registration order.  Equation-stage checks run only when no
+    structural error was found and ``context.can_assemble``."""
+    from . import checks  # noqa: F401  (registers the kernel's checks)
+    found: dict[str, list] = {}
+    for check in REGISTRY.values():
+        if check.stage == "structure" and "structure" in stages:
+            found[check.code] = list(check.run(context))
+    errors = any(d.severity == "error" for ds in found.values() for d in ds)
+    if "equations" in stages and not errors and context.can_assemble:
+        for check in REGISTRY.values():
+            if check.stage == "equations":
+                found[check.code] = list(check.run(context))
+    return [d for code in REGISTRY for d in found.get(code, [])]
 
 
 @dataclass
 class Diagnostic:
-    """One finding of the analyser."""
+    """One finding of a check."""
 
     code: str
     message: str
@@ -57,6 +84,8 @@ class Diagnostic:
     severity: str = ""
 
     def __post_init__(self):
+        if not CATALOGUE:
+            from . import checks  # noqa: F401
         if self.code not in CATALOGUE:
             raise ValueError(f"unknown diagnostic code {self.code!r}")
         self.severity = self.severity or CATALOGUE[self.code][0]

@@ -133,16 +133,14 @@ def _not_linearizable(scene, outputs, what: str) -> RunError:
 
 def bode(lin: Linearization, path, title=""):
     """Magnitude and phase of every input -> output pair, saved to ``path``."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     import control
     sys = lin.statespace()
     modes = [m[1] for m in lin.modes() if m[1] > 0]
     lo = min(modes) / 30 if modes else 0.01
     hi = max(modes) * 30 if modes else 100.0
     w = 2 * np.pi * np.logspace(np.log10(lo), np.log10(hi), 600)
-    fig, (ax_m, ax_p) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    fig = Figure(figsize=(8, 6))
+    ax_m, ax_p = fig.subplots(2, 1, sharex=True)
     for i, u in enumerate(lin.inputs):
         for k, y in enumerate(lin.outputs):
             resp = control.frequency_response(sys[k, i], w)
@@ -162,4 +160,4 @@ def bode(lin: Linearization, path, title=""):
     fig.suptitle(f"{title}: Bode plot (dotted: natural frequencies)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
+    from matplotlib.figure import Figure      # no pyplot: the caller's backend is left alone

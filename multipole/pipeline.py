@@ -17,6 +17,8 @@ from pathlib import Path
 
 from . import cache
 from .causality import Analysis, analyse
+from .checks import Context
+from .diagnostics import run_checks
 from .codegen import Model, compile_model
 from .equations import Equations, assemble
 from .errors import IllPosedError, MultipoleError, NetlistError
@@ -28,7 +30,13 @@ _MODELS: dict = {}
 
 
 def check(scene: Scene) -> Analysis:
-    """Flatten and analyse; structural findings are in ``.diagnostics``."""
+    """Flatten, analyse and run every registered check (:mod:`multipole.checks`).
+
+    ``.diagnostics`` holds everything ``multipole check`` reports, in report order: the structural
+    findings and, when there is no structural error, those of the assembled equations (algebraic
+    loops, a singular loop, a source that can deliver no power).  The assembled equations are kept
+    in ``.assembled`` for :func:`equations`.
+    """
     try:
         flat = flatten(scene.network)
     except MultipoleError as exc:
@@ -38,14 +46,17 @@ def check(scene: Scene) -> Analysis:
         if name not in states:
             raise NetlistError("unknown_state", f"prefer_state names {name!r}, which is not a storage state",
                                f"storage states: {', '.join(sorted(states))}", scene.path)
-    analysis = analyse(flat)
+    analysis = analyse(flat, diagnose=False)
+    context = Context(analysis, scene, lambda: assemble(analysis, scene.name))
+    analysis.diagnostics = run_checks(context)
+    analysis.assembled = context.equations() if analysis.ok else None
     return analysis
 
 
 def equations(scene: Scene, analysis: Analysis | None = None) -> Equations:
     """The explicit ODE; :class:`IllPosedError` if the check found errors."""
     analysis = analysis or check(scene)
-    eq = assemble(analysis, scene.name)
+    eq = analysis.assembled or assemble(analysis, scene.name)
     for out in scene.outputs:
         try:
             eq.output(out)

@@ -1,4 +1,6 @@
-"""Extra integrators with scipy's ``OdeSolver`` interface (registered in :data:`multipole.simulate.SOLVERS`).
+"""The integrators a scene may name (:data:`SOLVERS`: scipy's and the extra ones defined here).
+
+Extra integrators with scipy's ``OdeSolver`` interface:
 
 :class:`GaussLegendre` — implicit Runge–Kutta collocation at the ``s`` Gauss–Legendre points
 (order ``2s``; ``s = 1`` is the implicit midpoint rule).  Gauss methods are symplectic and conserve
@@ -20,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy.integrate import DenseOutput, OdeSolver
+from scipy.integrate import BDF, DOP853, LSODA, RK23, RK45, DenseOutput, OdeSolver, Radau
 from scipy.linalg import lu_factor, lu_solve
 
 __all__ = ["GaussLegendre", "GL4", "gauss_legendre_tableau"]
@@ -245,3 +247,8 @@ class GL4(GaussLegendre):
     def __init__(self, fun, t0, y0, t_bound, **kw):
         kw.pop("stages", None)
         super().__init__(fun, t0, y0, t_bound, stages=2, **kw)
+
+
+#: integrators by the name ``simulate: {solver: ...}`` and ``--solver`` use (besides ``auto``); the
+#: netlist loader validates names against it and :mod:`multipole.simulate` runs them
+SOLVERS = {"RK45": RK45, "RK23": RK23, "DOP853": DOP853, "Radau": Radau, "BDF": BDF, "LSODA": LSODA, "GL4": GL4}

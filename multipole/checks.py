@@ -1,0 +1,524 @@
+"""The registered checks: each turns what the causality analyser found (or the assembled
+equations) into diagnostics in the user's words.
+
+The analyser (:mod:`multipole.causality`) is the algorithm: it records *findings* — equations
+that are redundant, a locked loop, states it put into derivative causality, variables nothing
+determines — as :class:`~multipole.causality.Finding` objects in internal names.  A check here is
+a function registered with :func:`multipole.diagnostics.register` under its diagnostic code; it
+reads a :class:`Context` and yields :class:`~multipole.diagnostics.Diagnostic` objects.  Every
+message names the netlist's elements, ports and expressions (:class:`Names`), never the
+primitives and nodes an element is built of.
+
+Registration order is report order: the warnings about open terminals come first.
+"""
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+
+import networkx as nx
+import sympy as sp
+
+from .diagnostics import Diagnostic, register
+from .errors import IllPosedError
+from .network import var
+
+
+def listing(names) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    names = list(names)
+    if not names:
+        return ""
+    return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
+
+
+def user_expression(expr) -> str:
+    """A sympy expression in netlist syntax: ``Heaviside(x, 1)`` is written ``step(x)``."""
+    expr = sp.sympify(expr)
+    step = sp.Function("step")
+    return str(expr.replace(sp.Heaviside, lambda x, *_: step(x)))
+
+
+# ---------------------------------------------------------------------------------------------
+# names the user wrote
+
+class Names:
+    """Translates the analyser's internal names (primitive paths, node names, port variables)
+    into the elements, ports and expressions of the netlist."""
+
+    def __init__(self, analysis, scene=None):
+        self.analysis = analysis
+        self.flat = analysis.flat
+        self.scene = scene
+        self.user_port: dict = {}            # primitive port path -> "element.port" of the netlist
+        for name, pp in self.flat.external_ports.items():
+            self.user_port.setdefault(pp, name)
+        self.members: dict = defaultdict(list)   # representative -> port variables aliased to it
+        for v, (rep, _sign) in analysis.aliases.items():
+            self.members[rep].append(v)
+
+    def elements(self, owner: str) -> list:
+        """The netlist elements an equation owner belongs to (a node: the elements it joins)."""
+        if owner.startswith("node(") and owner.endswith(")"):
+            return sorted({self.flat.element_of(p) for p in owner[5:-1].split(", ")})
+        return [self.flat.element_of(owner)]
+
+    def elements_of(self, owners) -> list:
+        return sorted({e for o in owners for e in self.elements(o)})
+
+    def port(self, port_path: str) -> str | None:
+        """``element.port`` of the netlist for a primitive port path, None for an inner port."""
+        return self.user_port.get(port_path)
+
+    def variable(self, sym) -> str:
+        """A port variable as ``the torque at shaft.b`` (or ``… inside mesh`` when no netlist port
+        carries it); other symbols (states, inputs) by their own names."""
+        name = sym.name
+        if name.startswith("der(") and name.endswith(")"):
+            return "the rate of change of " + self.variable(var(name[4:-1]))
+        if name[-2:] not in (".e", ".f") or name[:-2] not in self.flat.port_domains:
+            return name
+        kind = name[-1]
+        rep = self.analysis.aliases.get(sym, (sym, 1))[0]
+        ports = sorted({self.user_port[v.name[:-2]] for v in self.members.get(rep, [sym])
+                        if v.name.endswith("." + kind) and v.name[:-2] in self.user_port})
+        dom = self.flat.port_domains[name[:-2]]
+        noun = dom.effort if kind == "e" else dom.flow
+        if ports:
+            return f"the {noun} at {ports[0]}"
+        return f"the {noun} inside {self.flat.element_of(name)}"
+
+    def variables(self, syms, limit: int = 6) -> str:
+        words = list(dict.fromkeys(self.variable(s) for s in syms))
+        return listing(words[:limit] + (["…"] if len(words) > limit else []))
+
+    def expression(self, element: str, expr) -> str:
+        """The text the netlist gave for ``element``'s time function, else ``expr`` in netlist syntax."""
+        texts = getattr(self.scene, "element_values", {}).get(element, {}) if self.scene is not None else {}
+        for text in texts.values():
+            if re.search(r"\b(step|pulse)\s*\(", str(text)):
+                return str(text)
+        return user_expression(expr)
+
+
+class Context:
+    """What the checks read: the analysis, its user names, the scene (optional) and, on request,
+    the assembled equations (``assemble()`` given by the pipeline; checks of the ``equations``
+    stage run only when it is)."""
+
+    def __init__(self, analysis, scene=None, assemble=None):
+        self.analysis = analysis
+        self.flat = analysis.flat
+        self.scene = scene
+        self.names = Names(analysis, scene)
+        self._assemble = assemble
+        self._equations = None
+        self.assembly_error: IllPosedError | None = None
+
+    @property
+    def can_assemble(self) -> bool:
+        return self._assemble is not None
+
+    def equations(self):
+        """The assembled equations, or None if assembling failed (see ``assembly_error``)."""
+        if self._equations is None and self.assembly_error is None and self._assemble is not None:
+            try:
+                self._equations = self._assemble()
+            except IllPosedError as exc:
+                self.assembly_error = exc
+        return self._equations
+
+    def findings(self, kind: str) -> list:
+        return [f for f in self.analysis.findings if f.kind == kind]
+
+
+# ---------------------------------------------------------------------------------------------
+# wording shared by several checks
+
+def element_graph(flat) -> nx.Graph:
+    """Bipartite graph of top-level elements and the nodes joining them."""
+    g = nx.Graph()
+    for node in flat.nodes:
+        if node.origin != "connection":
+            continue
+        for p in node.ports:
+            g.add_edge(("n", node.name), ("el", flat.element_of(p)))
+    return g
+
+
+def loop_path(flat, elements) -> list:
+    """The loop through ``elements`` as element names, closed (first == last).  A node of the loop
+    is shown by an element hanging on it outside the loop (e.g. the shaft inertia) and left out
+    when there is none; with no loop in the graph the elements are listed."""
+    els = set(elements)
+    g = element_graph(flat)
+    best: list = []
+    for cyc in nx.cycle_basis(g):
+        members = {n for k, n in cyc if k == "el"}
+        if len(els & members) > len(els & {n for k, n in best if k == "el"}):
+            best = cyc
+    if not best:
+        return sorted(els)
+    loop_elements = {n for k, n in best if k == "el"}
+    start = next((i for i, (k, _) in enumerate(best) if k == "n"), 0)
+    best = best[start:] + best[:start]
+    names = []
+    for k, n in best:
+        if k == "el":
+            names.append(n)
+            continue
+        outside = sorted({m for _kk, m in g.neighbors((k, n)) if m not in loop_elements})
+        if outside:
+            names.append(outside[0])
+    names = [n for i, n in enumerate(names) if i == 0 or n != names[i - 1]]
+    return names + names[:1]
+
+
+def _redundancy(ctx: Context, finding) -> Diagnostic:
+    """Redundant equations with no unknown to absorb them: two sources, or a rigid loop."""
+    flat, names = ctx.flat, ctx.names
+    eqs = [ctx.analysis.equations[i] for i in finding.equations]
+    elements = names.elements_of(e.owner for e in eqs)
+    sources = sorted({flat.element_of(e.owner) for e in eqs if e.role == "source"})
+    kinds = {s.name.rsplit(".", 1)[1] for e in eqs for s in e.expr.free_symbols if "." in s.name}
+    flows = "f" in kinds and "e" not in kinds
+    if sources:
+        dom = flat.port_domains[next(p for p in flat.port_domains if flat.element_of(p) == sources[0])]
+        word = dom.flow if flows else dom.effort
+        other = dom.effort if flows else dom.flow
+        where = ("rigid node" if flows else "massless node") if dom.node_kind == "b" else \
+            ("series branch" if flows else "node")
+        return Diagnostic(
+            "source_conflict",
+            f"{listing(sources)} {'both' if len(sources) == 2 else 'all'} impose the {word} on the same "
+            f"{where} ({' + '.join(elements)}): {'kinematic' if flows else 'static'} over-determination; "
+            f"the {other} there is left undetermined ({'static' if flows else 'kinematic'} under-determination)",
+            f"remove one source or put {dom.compliance} between them" if flows else
+            f"put {dom.inertia} between the sources or drive one side with a {dom.flow} source instead",
+            elements=elements)
+    path = loop_path(flat, elements)
+    dom = next(iter(flat.port_domains.values()))
+    for e in eqs:
+        for s in e.expr.free_symbols:
+            if s.name[:-2] in flat.port_domains:
+                dom = flat.port_domains[s.name[:-2]]
+                break
+    if flows:
+        return Diagnostic(
+            "kinematic_overdetermination",
+            f"kinematic over-determination: the rigid loop through {', '.join(elements)} imposes the same "
+            f"{dom.flow} twice (consistent ratios); static under-determination: nothing decides how the "
+            f"{dom.effort} splits between the parallel paths",
+            "make one coupling in this loop elastic", elements=elements, path=path)
+    return Diagnostic(
+        "static_overdetermination",
+        f"static over-determination: the {dom.effort} around {', '.join(elements)} is imposed twice; "
+        f"kinematic under-determination: nothing decides how the {dom.flow} splits",
+        f"add a storage element ({dom.inertia} or {dom.compliance}) in this loop", elements=elements,
+        path=path)
+
+
+def _redundancies(ctx: Context, code: str):
+    for f in ctx.findings("redundant"):
+        d = _redundancy(ctx, f)
+        if d.code == code:
+            yield d
+
+
+def _zero_value(flat, expr) -> bool:
+    """True if a source's value is identically zero (a ground)."""
+    try:
+        value = sp.sympify(sp.sympify(expr).xreplace(flat.param_values()))
+        return bool(value == 0) or (not value.free_symbols and float(value) == 0.0)
+    except (TypeError, ValueError):
+        return False
+
+
+def _sources(flat):
+    """``(primitive path, primitive)`` of every source that imposes a nonzero value."""
+    for path, prim in flat.primitives.items():
+        if prim.kind in ("Se", "Sf") and not _zero_value(flat, prim.params.get("value", 0)):
+            yield path, prim
+
+
+# ---------------------------------------------------------------------------------------------
+# the checks, in report order
+
+@register("powerless_source", "warning",
+          "a source whose power variable is forced to zero by an open pin or a free end the netlist "
+          "left unconnected (a forgotten ground): it delivers no power and the simulation stays at rest",
+          stage="equations")
+def powerless_source(ctx: Context):
+    eq = ctx.equations()
+    if eq is None:
+        return
+    flat, names, aliases = ctx.flat, ctx.names, ctx.analysis.aliases
+    zeros = {u for u, e in flat.inputs.items() if _zero_value(flat, e)}
+    for block in eq.blocks:
+        if block.solution is None:
+            continue
+        for v, sol in zip(block.variables, block.solution):
+            sol = sp.sympify(sol)
+            if sol.xreplace({z: 0 for z in sol.free_symbols & zeros}) == 0:
+                zeros.add(v)
+    comp = {}
+    for k, part in enumerate(nx.connected_components(element_graph(flat))):
+        comp.update({n: k for kind, n in part if kind == "el"})
+    for path, prim in _sources(flat):
+        conj = "f" if prim.kind == "Se" else "e"
+        sym = var(f"{path}.p.{conj}")
+        if aliases.get(sym, (sym, 1))[0] not in zeros:
+            continue
+        element = flat.element_of(path)
+        dom = prim.ports["p"]
+        noun = dom.flow if conj == "f" else dom.effort
+        open_ports = []
+        for node in flat.nodes:
+            if node.origin != "termination":
+                continue
+            pp = node.ports[0]
+            forced = var(f"{pp}.{node.domain.free_variable}")
+            user = names.port(pp)
+            if user and aliases.get(forced, (forced, 1))[0] in zeros and \
+                    comp.get(flat.element_of(pp), -1) == comp.get(element, -2):
+                open_ports.append(user)
+        open_ports.sort(key=lambda p: (flat.element_of(p) != element, p))
+        if open_ports:
+            first = open_ports[0]
+            odom = flat.port_domains[flat.external_ports[first]]
+            how = f"open: no {odom.flow} flows through it" if odom.free_variable == "f" \
+                else f"a free end: nothing takes up a {odom.effort} there"
+            if odom.name in ("electrical", "hydraulic"):
+                fix = f"connect {first} to ground (or to the rest of the circuit)"
+            else:
+                fix = f"connect {first} to the part it should drive, or to a ground"
+            yield Diagnostic(
+                "powerless_source",
+                f"{element} can deliver no power: its {noun} is forced to zero because "
+                f"{listing(open_ports[:3])} {'is' if len(open_ports) == 1 else 'are'} not connected "
+                f"({how}), so everything it should drive stays at rest",
+                fix, elements=[element], ports=open_ports[:3])
+        else:
+            yield Diagnostic(
+                "powerless_source",
+                f"{element} can deliver no power: its {noun} is forced to zero by what it is connected to",
+                f"connect {element} to the part it should drive", elements=[element])
+
+
+@register("isolated_subnetwork", "warning",
+          "elements joined to no source, starting at rest: nothing will ever move them (a missing "
+          "connection)")
+def isolated_subnetwork(ctx: Context):
+    flat = ctx.flat
+    g = element_graph(flat)
+    for name in flat.elements:
+        if name and name != "<root>" and "." not in name:
+            g.add_node(("el", name))
+    parts = [sorted(n for k, n in part if k == "el") for part in nx.connected_components(g)]
+    driven = {flat.element_of(path) for path, _ in _sources(flat)}
+    if len(parts) < 2 or not driven:
+        return
+    values = flat.param_values()
+    for part in parts:
+        if set(part) & driven:
+            continue
+        states = [s for s in flat.states if s.storage and flat.element_of(s.owner) in part]
+        if any(float(sp.sympify(s.initial).xreplace(values)) != 0.0 for s in states):
+            continue            # it moves from its initial values: a separate free system
+        yield Diagnostic(
+            "isolated_subnetwork",
+            f"{listing(part)} {'is' if len(part) == 1 else 'are'} connected to no source and "
+            f"start{'s' if len(part) == 1 else ''} at rest: nothing will move there",
+            "connect them to the part that is driven (a connection is probably missing), or remove them",
+            elements=part)
+
+
+@register("source_conflict", "error", "two sources impose the same variable (or the balance of a massless node)")
+def source_conflict(ctx: Context):
+    return _redundancies(ctx, "source_conflict")
+
+
+@register("kinematic_overdetermination", "error",
+          "a rigid loop imposes a flow twice (consistent ratios): the junction gets two flow inputs and "
+          "its effort sum is one input short — static under-determination")
+def kinematic_overdetermination(ctx: Context):
+    return _redundancies(ctx, "kinematic_overdetermination")
+
+
+@register("static_overdetermination", "error",
+          "the dual: an effort is imposed twice and the corresponding flow is undetermined")
+def static_overdetermination(ctx: Context):
+    return _redundancies(ctx, "static_overdetermination")
+
+
+@register("locked_loop", "error", "a rigid loop with inconsistent ratios: the only motion it admits is standstill")
+def locked_loop(ctx: Context):
+    for f in ctx.findings("locked"):
+        elements = ctx.names.elements_of(ctx.analysis.equations[i].owner for i in f.equations)
+        rigid = sorted({ctx.flat.element_of(ctx.analysis.equations[i].owner) for i in f.equations})
+        yield Diagnostic(
+            "locked_loop",
+            f"locked loop: the rigid couplings {', '.join(rigid)} impose inconsistent ratios around the loop, "
+            "so it admits only standstill (kinematic over-determination with no consistent motion)",
+            "check the ratios (their product around the loop must be 1) or make one coupling in this loop elastic",
+            elements=rigid, path=loop_path(ctx.flat, elements))
+
+
+@register("input_differentiation", "error",
+          "resolving derivative causality needs the time derivative of an input that has none (a step or "
+          "a pulse): the response would be an impulse")
+def input_differentiation(ctx: Context):
+    flat = ctx.flat
+    for f in ctx.findings("impulse"):
+        eq = ctx.analysis.equations[f.equations[0]]
+        element = flat.element_of(eq.owner)
+        inputs = [u for u in eq.expr.free_symbols if u in flat.inputs]
+        expr = flat.inputs[inputs[0]] if inputs else eq.expr
+        yield Diagnostic(
+            "input_differentiation",
+            f"{element}: resolving the rigid coupling needs d/dt of its value {ctx.names.expression(element, expr)}, "
+            "which contains a step or pulse: the effort would be an impulse",
+            "give the input a finite rise time (ramp or smooth function) or make the coupling elastic",
+            elements=[element])
+
+
+@register("overdetermined", "error", "equations that impose more than they can, with no storage to resolve it")
+def overdetermined(ctx: Context):
+    for f in ctx.findings("overdetermined"):
+        owners = ctx.names.elements_of(ctx.analysis.equations[i].owner for i in f.equations)
+        yield Diagnostic(
+            "overdetermined", f"the equations of {', '.join(owners)} impose more than they can "
+            "(structurally over-determined) and the analyser found no storage to resolve it",
+            "look for two rigid paths or two sources acting on the same variable", elements=owners)
+
+
+@register("missing_cross_coupling", "error",
+          "variables no equation determines because a branch ends where the element's structure needs a "
+          "cross-coupling the parameters leave out; the element names it and says how to add it")
+def missing_cross_coupling(ctx: Context):
+    flat, names = ctx.flat, ctx.names
+    for f in ctx.findings("placeholder"):
+        element = flat.element_of(f.path)
+        owner = f.path.rsplit(".", 1)[0] if "." in f.path else f.path
+        needs, fix = f.words
+        nouns = set()
+        for sym in f.variables:
+            dom = flat.port_domains[sym.name[:-2]]
+            nouns.add(dom.effort if sym.name.endswith(".e") else dom.flow)
+        sums = [s[len(element) + 1:] if s.startswith(element + ".") else s for s in f.sums]
+        where = (f"the {'/'.join(sorted(nouns))} sums at {' and '.join(sums)} inside {element} are" if sums else
+                 "the junctions that need it are")
+        ports = sorted({names.port(s.name[:-2]) for s in f.variables if names.port(s.name[:-2])})
+        yield Diagnostic(
+            "missing_cross_coupling",
+            f"{element}: {needs}. Nothing determines {names.variables(f.variables)}, so {where} one input short "
+            f"(under-determined)",
+            fix.format(element=element, owner=owner) if fix else
+            f"complete {element} so that its {f.path[len(element) + 1:] or 'placeholder'} is a cross-coupling (I, R or C)",
+            elements=[element], ports=ports)
+
+
+@register("underdetermined", "error", "variables no equation determines")
+def underdetermined(ctx: Context):
+    flat, names = ctx.flat, ctx.names
+    for f in ctx.findings("undetermined"):
+        missing = f.variables
+        electrical = all(s.name[:-2] in flat.port_domains and s.name.endswith(".e")
+                         and flat.port_domains[s.name[:-2]].name in ("electrical", "hydraulic") for s in missing)
+        ports = sorted({names.port(s.name[:-2]) for s in missing if names.port(s.name[:-2])})
+        elements = sorted({flat.element_of(s.name) for s in missing if "." in s.name})
+        yield Diagnostic(
+            "underdetermined",
+            f"nothing determines {names.variables(missing)}",
+            "add a ground (reference potential) to the circuit" if electrical else
+            "add a storage element, a source or a ground where these variables live",
+            elements=elements, ports=ports)
+
+
+@register("singular_loop", "error", "an algebraic loop whose equations are singular: it has no unique solution",
+          stage="equations")
+def singular_loop(ctx: Context):
+    ctx.equations()
+    exc = ctx.assembly_error
+    if exc is None or exc.code != "singular_loop":
+        return
+    owners = getattr(exc, "owners", None)
+    variables = getattr(exc, "variables", None)
+    if owners is None or variables is None:
+        yield Diagnostic("singular_loop", exc.message, exc.fix)
+        return
+    elements = ctx.names.elements_of(owners)
+    yield Diagnostic(
+        "singular_loop",
+        f"the algebraic loop through {', '.join(elements)} is singular: it does not determine "
+        f"{ctx.names.variables(variables)} uniquely",
+        f"check the parameters of {listing(elements)} (a loop gain or a resistance sum that is zero) "
+        "or add a storage element to the loop", elements=elements)
+
+
+@register("derivative_causality", "info",
+          "storage elements coupled rigidly: one is put into derivative causality and resolved into an "
+          "effective inertia or compliance")
+def derivative_causality(ctx: Context):
+    flat = ctx.flat
+    for f in ctx.findings("demoted"):
+        elements = ctx.names.elements_of(ctx.analysis.equations[i].owner for i in f.equations)
+        states = {s.symbol: s for s in flat.states}
+        kinds = {flat.primitives[states[s].owner].kind for s in f.states}
+        what = "an effective inertia" if kinds <= {"I"} else \
+            "an effective compliance" if kinds <= {"C", "CField"} else "effective storage"
+        yield Diagnostic(
+            "derivative_causality",
+            f"storage joined rigidly through {', '.join(elements)}: "
+            f"{', '.join(s.name for s in f.states)} in derivative causality, resolved into {what} "
+            f"(constrained-state form)", elements=elements)
+
+
+@register("algebraic_loop", "info", "a loop without storage: solved symbolically when linear, by Newton otherwise",
+          stage="equations")
+def algebraic_loop(ctx: Context):
+    eq = ctx.equations()
+    if eq is None:
+        return
+    names = ctx.names
+    for block in eq.blocks:
+        derivative = any(v.name.startswith("der(") for v in block.variables)
+        if block.kind == "explicit" or (block.kind == "linear" and derivative):
+            continue
+        torn = [b for b in eq.blocks if b.kind == "explicit" and b.variables[0] in block.torn]
+        owners = list(block.owners) + [o for b in torn for o in b.owners]
+        variables = list(block.variables) + [v for b in torn for v in b.variables]
+        elements = names.elements_of(owners)
+        kind = "linear" if block.kind == "linear" else "nonlinear"
+        how = "solved symbolically" if block.solution is not None else \
+            "solved numerically in the generated code" if kind == "linear" else \
+            "iterated by Newton's method in the generated code"
+        if torn:
+            how += f" on {names.variables(block.variables, 2)}, the others explicit from it"
+        unknowns = list(dict.fromkeys(names.variable(v) for v in variables))
+        yield Diagnostic(
+            "algebraic_loop",
+            f"{kind} algebraic loop through {', '.join(elements)} ({len(unknowns)} unknown(s): "
+            f"{names.variables(variables, 4)}): {how}", elements=elements)
+
+
+@register("unconnected_port", "info", "a port nobody connected takes its default termination")
+def unconnected_port(ctx: Context):
+    for node in ctx.flat.nodes:
+        if node.origin != "termination":
+            continue
+        port = ctx.names.port(node.ports[0])
+        if port:
+            yield Diagnostic(
+                "unconnected_port",
+                f"{port} is not connected: {'free end (effort 0)' if node.domain.free_variable == 'e' else 'open (flow 0)'}",
+                elements=[port.split('.')[0]], ports=[port])
+
+
+@register("degrees_of_freedom", "info", "the states the simulation integrates")
+def degrees_of_freedom(ctx: Context):
+    an = ctx.analysis
+    yield Diagnostic(
+        "degrees_of_freedom",
+        f"{len(an.states)} state(s) integrated: {', '.join(s.name for s in an.states) or 'none'}"
+        + (f"; in derivative causality: {', '.join(s.name for s in an.demoted)}" if an.demoted else ""))

@@ -506,6 +506,8 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
             name, code = found
             if code is None:
                 where = f"{_FUNCTIONS.get(frame.f_code.co_name, 'the model')} near {name}"
+            elif code.startswith("newton("):            # the loop's unknown, not the solver call
+                where = f"the algebraic loop for {name}"
             else:
                 where = f"{name} = {code if len(code) <= 80 else code[:77] + '...'}"
             element = element_of(name)
@@ -513,8 +515,7 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
     where = where or function or "the model"
     when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
     if isinstance(exc, NewtonError):
-        return _failed(model, "newton_failed", f"Newton's method failed{when} in {where}: {exc.message}",
-                       exc.fix, element)
+        return _failed(model, "newton_failed", f"no solution{when} in {where} ({exc.message})", exc.fix, element)
     reason = next((r for cls, r in _REASONS.items() if isinstance(exc, cls)), None)
     if reason is None:
         text = str(exc)
@@ -597,11 +598,12 @@ def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: floa
                 raise model_failure(model, exc) or SimulationError(
                     "step_failed", f"integration failed at t = {ode.t:.6g} s: {exc}") from None
             if ode.status == "failed":
+                element = None
                 if newton_failures:
-                    msg += (f"; Newton's method failed {len(newton_failures)} times in an algebraic loop "
-                            f"(last: {newton_failures[-1]})")
-                cause, element = None, None
-                if not np.all(np.isfinite(rhs(ode.t, ode.y))):
+                    last = newton_failures[-1]
+                    msg += f"; Newton's method failed {len(newton_failures)} times, last: {last.message}"
+                    element = last.element
+                elif not np.all(np.isfinite(rhs(ode.t, ode.y))):
                     cause, element = locate_non_finite(model, ode.t, ode.y)
                     msg += f"; infinite or NaN: {cause}"
                 raise _failed(model, "step_failed", f"{solver} failed at t = {ode.t:.6g} s: {msg}",
@@ -803,7 +805,7 @@ def _sides(model, t, x, signs, t_end):
 def _rejecting_unsolvable_loops(model):
     """``(rhs, failures)``: the model's right-hand side, returning NaN where an algebraic loop has
     no Newton solution at a trial state, so that the integrator rejects that step and retries a
-    shorter one (a NaN error estimate is a rejection); the messages are kept in ``failures``.
+    shorter one (a NaN error estimate is a rejection); the located errors are kept in ``failures``.
     A failure at an accepted state still ends the run, with the Newton message."""
     failures: list = []
     base = model.rhs_in_mode if model.n_switches else model.rhs
@@ -814,7 +816,7 @@ def _rejecting_unsolvable_loops(model):
         try:
             return base(t, x)
         except NewtonError as exc:
-            failures.append(str(exc))
+            failures.append(model_failure(model, exc) or _failed(model, "newton_failed", exc.message))
             return np.full(len(x), np.nan)
     return rhs, failures
 

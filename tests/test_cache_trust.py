@@ -124,8 +124,10 @@ DAMAGED = {
     "binary junk": _raw(lambda p, k, d: bytes(range(256)) * 4),
     "truncated": _raw(lambda p, k, d: signed(k, p.name, json.dumps(d).encode())[:300]),
     "old format (bare JSON)": _raw(lambda p, k, d: json.dumps(d).encode()),
-    "one byte of the source changed": _raw(
-        lambda p, k, d: signed(k, p.name, json.dumps(d).encode()).replace(b"rhs_calls", b"rhs_callz", 1)),
+    "force doubled after signing": _raw(
+        lambda p, k, d: signed(k, p.name, json.dumps(d).encode()).replace(b"push_u = 10.0", b"push_u = 20.0", 1)),
+    "force doubled, MAC with another key": _raw(
+        lambda p, k, d: signed(b"\1" * 32, p.name, json.dumps(d).encode().replace(b"push_u = 10.0", b"push_u = 20.0"))),
     "MAC of another file name": _raw(lambda p, k, d: signed(k, "model-0.entry", json.dumps(d).encode())),
     "MAC with another key": _raw(lambda p, k, d: signed(b"\0" * 32, p.name, json.dumps(d).encode())),
     # authenticated with the user's key, but of the wrong shape
@@ -156,7 +158,9 @@ DAMAGED = {
 def test_a_damaged_entry_is_rebuilt(root, netlist, name):
     simulate(netlist)
     path, key, data = genuine(root)
-    path.write_bytes(DAMAGED[name](path, key, data))
+    planted = DAMAGED[name](path, key, data)
+    assert planted != path.read_bytes()
+    path.write_bytes(planted)
     assert not simulate(netlist).stats["model_cached"]
     assert simulate(netlist).stats["model_cached"]          # rewritten: the next run restores it
 

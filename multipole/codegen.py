@@ -104,7 +104,11 @@ class _Printer(PythonCodePrinter):
             raise ModelError("codegen", f"no value for symbol {s} in generated code") from None
 
     def _print_Float(self, x):
-        return repr(float(x))
+        value = float(x)
+        if not math.isfinite(value):
+            raise ModelError("infinite_value", f"the number {sp.Float(x, 4)} is beyond the float range (1.8e308)",
+                             "rescale the expression or its units")
+        return repr(value)
 
     def _print_Rational(self, x):
         return repr(float(x))
@@ -215,6 +219,48 @@ def switch_list(writer) -> list:
     return list(dict.fromkeys(s for e in exprs for s in switching_functions(e) if s.free_symbols))
 
 
+_PERIODIC = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
+
+
+def time_switches(writer, sw) -> tuple[list, list]:
+    """``(time_only, rate)`` for the switching functions ``sw``: whether each depends on time alone
+    (no state, through the intermediate variables and inputs it is computed from), and for those
+    the fastest angular rate of a sine/cosine/tangent of time inside it [rad/s] (0.0 if there is
+    none, ``inf`` if an argument is not linear in t).  The driver finds the crossings of these
+    functions before integrating (:func:`multipole.simulate.time_switch_schedule`)."""
+    states = set(writer.states)
+    inputs = {u: sp.sympify(e) for u, e in writer.eq.inputs.items()}
+    time_only, rate = [], []
+    for g in sw:
+        units = _closure(writer.units, g.free_symbols)
+        syms = set(g.free_symbols).union(*(u.deps for u in units))
+        syms |= set().union(*(inputs[u].free_symbols for u in syms if u in inputs))
+        if syms & states or any(u.kind != "assign" for u in units):
+            time_only.append(False)
+            rate.append(0.0)
+            continue
+        subs = dict(inputs)
+        subs.update({v: e for u in units for v, e in zip(u.variables, u.exprs)})
+        expr = sp.sympify(g)
+        for _ in range(len(units) + 2):          # inline the evaluation order (it is acyclic)
+            expr = expr.xreplace(subs).xreplace(writer.pvals)
+        fastest = 0.0
+        for node in sp.preorder_traversal(expr):
+            if isinstance(node, _PERIODIC) and node.args[0].has(T):
+                slope = sp.diff(node.args[0], T)
+                fastest = max(fastest, abs(float(slope)) if not slope.free_symbols else math.inf)
+        time_only.append(True)
+        rate.append(fastest)
+    return time_only, rate
+
+
+def time_switch_lines(writer, sw) -> list:
+    """``SWITCH_TIME_ONLY`` and ``SWITCH_RATE`` (see :func:`time_switches`) as generated code."""
+    time_only, rate = time_switches(writer, sw)
+    return [f"SWITCH_TIME_ONLY = {time_only!r}",
+            "SWITCH_RATE = [" + ", ".join("math.inf" if math.isinf(r) else repr(float(r)) for r in rate) + "]"]
+
+
 class Model:
     """Compiled model: ``rhs(t, x)``, ``jac(t, x)``, ``outputs(t, x)``, ``switches(t, x)``.
 
@@ -249,6 +295,9 @@ class Model:
         self.rhs_in_mode = namespace.get("rhs_in_mode", self.rhs)
         self.jac_in_mode = namespace.get("jac_in_mode", self.jac)
         self.switch_text = namespace["SWITCH_TEXT"]
+        #: per switching function: depends on time alone, and its fastest sine rate [rad/s]
+        self.switch_time_only = list(namespace.get("SWITCH_TIME_ONLY", [False] * self.n_switches))
+        self.switch_rate = list(namespace.get("SWITCH_RATE", [0.0] * self.n_switches))
         self.values = namespace["values"]
         self.value_names = namespace["VALUE_NAMES"]
 
@@ -586,7 +635,7 @@ def generate(eq: Equations, outputs=()) -> str:
                       f"[{', '.join(N[v] for v in every)}]")
     sw = switch_list(w)
     needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
-    src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"]
+    src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"] + time_switch_lines(w, sw)
     src += w.function("switches", "Switching functions: a sign change is an event.", needed,
                       f"[{', '.join(P(s) for s in sw)}]")
     src += w.jacobian()

@@ -118,9 +118,12 @@ def rel_error(res, ref: dict) -> float:
 
 
 def run_numba(path_or_scene, **kw):
-    """``pipeline.run`` of a diagram path or a scene on the numba backend."""
+    """``pipeline.run`` of a diagram path or a scene on the numba backend, which must have run (a
+    fallback to numpy would pass most comparisons unnoticed)."""
     sc = load(path_or_scene) if isinstance(path_or_scene, Path) else path_or_scene
-    return pipeline.run(sc, progress=False, backend="numba", **kw)
+    res = pipeline.run(sc, progress=False, backend="numba", **kw)
+    assert res.stats["backend"] == "numba", res.stats["backend"]
+    return res
 
 
 # -- agreement with theory ---------------------------------------------------------------------------
@@ -234,7 +237,8 @@ def test_same_algorithms_as_the_numpy_backend(nb, solver):
     solution within the tolerance, and about the same work."""
     for sc in (load(DRIVE), load(RLC), scene(NONLINEAR_LOOP)):
         a = pipeline.run(sc, solver=solver, progress=False)
-        b = pipeline.run(sc, solver=solver, progress=False, backend="numba")
+        b = run_numba(sc, solver=solver)
+        assert a.stats["backend"] == "numpy"
         assert np.array_equal(a.t, b.t) and b.state_names == a.state_names and b.units == a.units
         rtol = sc.simulate["rtol"]
         for name in a.outputs:
@@ -255,19 +259,19 @@ def test_nonlinear_loop_is_solved_by_newton_in_compiled_code(nb):
 def test_auto_picks_radau_for_a_stiff_shaft_like_the_numpy_backend(nb):
     sc = load(DRIVE, {"c_shaft": "1e8"})
     a = pipeline.run(sc, t_end=0.5, rtol=1e-6, progress=False)
-    b = pipeline.run(sc, t_end=0.5, rtol=1e-6, progress=False, backend="numba")
+    b = run_numba(sc, t_end=0.5, rtol=1e-6)
     assert a.solver == b.solver == "Radau" and b.solver_reason.startswith("stiff")
     exact = DriveTrain(c=1e8).exact(b.t[::25])
     for res in (a, b):                              # global error within 1000 rtol, as above
         assert max(float(np.max(np.abs(res[k][::25] - v)) / np.max(np.abs(v))) for k, v in exact.items()) <= 1e-3
-    b2 = pipeline.run(load(DRIVE), t_end=0.5, progress=False, backend="numba")
+    b2 = run_numba(DRIVE, t_end=0.5)
     assert b2.solver == "RK45" and b2.solver_reason.startswith("non-stiff")
 
 
 def test_other_scipy_names_map_to_the_two_methods(nb):
     sc = load(RLC)
     for asked, runs in (("DOP853", "RK45"), ("BDF", "Radau"), ("LSODA", "Radau"), ("RK23", "RK45")):
-        res = pipeline.run(sc, t_end=0.01, solver=asked, progress=False, backend="numba")
+        res = run_numba(sc, t_end=0.01, solver=asked)
         assert res.solver == runs and asked in res.solver_reason
 
 
@@ -303,6 +307,7 @@ def test_progress_chunks_do_not_change_the_result(nb, monkeypatch, capsys):
     plain = run_numba(RLC, solver="Radau", t_end=0.03)
     monkeypatch.setattr(nb, "PROGRESS_CHUNK", 7)
     chunked = pipeline.run(load(RLC), solver="Radau", t_end=0.03, progress=True, backend="numba")
+    assert chunked.stats["backend"] == "numba"
     assert "100.0%" in capsys.readouterr().err
     assert np.array_equal(plain.states, chunked.states) and plain.stats["nfev"] == chunked.stats["nfev"]
 
@@ -310,18 +315,73 @@ def test_progress_chunks_do_not_change_the_result(nb, monkeypatch, capsys):
 def test_output_grid_is_the_numpy_backends(nb):
     for t_end, dt in ((0.1, 0.03), (0.1, 0.01), (2.0, None)):
         a = pipeline.run(load(RLC), t_end=t_end, dt_out=dt, progress=False)
-        b = pipeline.run(load(RLC), t_end=t_end, dt_out=dt, progress=False, backend="numba")
+        b = run_numba(RLC, t_end=t_end, dt_out=dt)
         assert np.array_equal(a.t, b.t)
 
 
-def test_a_model_numba_cannot_compile_runs_on_numpy_with_a_note(nb, monkeypatch):
+def _numba_cannot_compile(nb, monkeypatch):
     def broken(source):
         import numba
-        raise numba.core.errors.TypingError("no typing for this construct")
+        raise numba.core.errors.TypingError("no typing for this construct\nsecond line of numba's report")
     monkeypatch.setattr(nb, "load", broken)
-    res = run_numba(RLC, t_end=0.01)
-    assert "ran numpy instead" in res.solver_reason and res.stats["backend"] == "numpy (fallback)"
+
+
+def test_a_model_numba_cannot_compile_runs_on_numpy_visibly(nb, monkeypatch):
+    """The fallback is announced (a warning naming the reason) and recorded in ``stats["backend"]``
+    and ``solver_reason``; the numpy run gives the right answer."""
+    from multipole.errors import MultipoleWarning
+    _numba_cannot_compile(nb, monkeypatch)
+    with pytest.warns(MultipoleWarning, match=r"numba backend could not compile .*TypingError: no typing"):
+        res = pipeline.run(load(RLC), t_end=0.01, progress=False, backend="numba")
+    reason = "TypingError: no typing for this construct"
+    assert res.stats["backend"] == f"numpy (fallback: {reason})"
+    assert f"({reason}), ran numpy instead" in res.solver_reason
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
+
+
+def test_the_cli_shows_a_fallback_as_one_warning_line(nb, monkeypatch, capsys):
+    _numba_cannot_compile(nb, monkeypatch)
+    assert main(["simulate", str(RLC), "--backend", "numba", "--quiet", "--t-end", "0.01"]) == 0
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith("multipole: warning:") and "TypingError" in err[0], err
+
+
+def test_both_backends_report_the_same_stats_and_events(nb):
+    """One set of statistics keys (simulate.STATS_KEYS, documented in docs/backends.md) and the
+    same events on a scene with a time switch and a state switch."""
+    from multipole.simulate import STATS_KEYS
+    sc = scene(EVENT_SCENE)
+    a = pipeline.run(sc, solver="RK45", progress=False)
+    b = run_numba(sc, solver="RK45")
+    assert set(a.stats) == set(b.stats) == set(STATS_KEYS)
+    assert a.stats["backend"] == "numpy"
+    assert [text for _, text in a.events] == [text for _, text in b.events] and len(a.events) == 3
+    assert np.allclose([t for t, _ in a.events], [t for t, _ in b.events], rtol=0, atol=1e-9)
+    for s in (a.stats, b.stats):
+        assert s["events"] == 3 and s["segments"] == 4
+        for key in ("steps", "rejected", "nfev", "newton_failures"):
+            assert isinstance(s[key], int) and s[key] >= 0, key
+        assert s["wall_time"] > 0 and s["compile_time"] > 0
+
+
+#: the contact of tests/test_events.py, pushed by a force that starts at t = 5 ms (a time switch)
+EVENT_SCENE = """
+name: pushed_contact
+parameters: {m: 0.5, k: 2.0e4, v0: 1.5, gap: 0.01, F: 2.0}
+elements:
+  push:   {type: force_source, value: "F*step(t - 0.005)"}
+  body:   {type: mass, m: m, v0: v0}
+  stop_j: {type: junction_a, ports: [a, b, c], signs: [1, -1, -1], domain: translational}
+  stop:   {type: C, law: "k*max(q, 0)", q0: "-gap", domain: translational}
+  wall:   {type: ground, domain: translational}
+connections:
+  - [push.p, body.a]
+  - [body.b, stop_j.a]
+  - [stop_j.b, wall.p]
+  - [stop_j.c, stop.p]
+outputs: [body.v, stop.q]
+simulate: {t_end: 0.05, dt_out: 1.0e-4, rtol: 1.0e-10, atol: 1.0e-13}
+"""
 
 
 SQRT_BRAKE = """

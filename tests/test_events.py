@@ -1,5 +1,6 @@
 """Switching laws are events: the integrator stops at the crossing and restarts on the other side."""
 import numpy as np
+import pytest
 
 from helpers import run
 
@@ -60,3 +61,163 @@ def test_a_step_in_a_source_is_an_event_and_each_segment_is_smooth():
     assert [round(t, 12) for t, _ in res.events] == [t1]
     assert np.allclose(res["body.v"], F / m * np.maximum(res.t - t1, 0.0), rtol=0, atol=1e-12)
     assert res.stats["segments"] == 2 and res.stats["rejected"] == 0
+
+
+# -- events that cannot be missed (both backends) ------------------------------------------------------
+def _backends():
+    """numpy always; numba where it is installed."""
+    try:
+        import numba  # noqa: F401
+        return ["numpy", "numba"]
+    except ImportError:
+        return ["numpy", pytest.param("numba", marks=pytest.mark.skip(reason="numba not installed"))]
+
+
+BACKENDS = _backends()
+
+SQUARE_WAVE = """
+name: square_wave_torque
+parameters: {J: 1.0e-3, T: 1.0, w: 100000.0}
+elements:
+  drive: {type: torque_source, value: "T*sign(sin(w*t))"}
+  body:  {type: inertia, J: J}
+connections:
+  - [drive.p, body.a]
+outputs: [body.omega]
+simulate: {t_end: 0.02, dt_out: 1.0e-6, rtol: 1.0e-9, atol: 1.0e-12}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_square_wave_torque_switches_at_every_sign_change(backend):
+    """T·sign(sin(w t)) on a free inertia: the speed is a triangle wave of amplitude T/J·pi/w,
+    omega(t) = T/J·(phase folded into [0, pi])/w, phase = w t mod 2 pi, and the torque switches
+    at every zero of sin(w t) in (0, t_end): k pi/w for k = 1 .. floor(w t_end/pi).  Once 2 events
+    and an amplitude 440 times too large: the steps jumped over the sign changes."""
+    J, T, w, t_end = 1.0e-3, 1.0, 1.0e5, 0.02
+    res = run(SQUARE_WAVE, backend=backend)
+    assert res.stats["backend"] == backend       # no silent fallback
+    n_changes = int(np.floor(w * t_end / np.pi))
+    times = np.array([t for t, _ in res.events])
+    assert len(times) == n_changes == 636
+    assert np.allclose(times, np.arange(1, n_changes + 1) * np.pi / w, rtol=0, atol=1e-12)
+    phase = np.mod(w * res.t, 2 * np.pi)
+    triangle = T / J * np.where(phase < np.pi, phase, 2 * np.pi - phase) / w
+    # each segment is a straight line the method integrates exactly: only round-off remains
+    assert np.max(np.abs(res["body.omega"] - triangle)) < 1e-9 * T / J * np.pi / w
+    assert res.stats["events"] == n_changes and res.stats["segments"] == n_changes + 1
+
+
+PULSE = """
+name: short_pulse
+parameters: {m: 2.0, F: 3.0, t1: 0.4, width: 1.0e-6}
+elements:
+  push: {type: force_source, value: "F*pulse(t, t1, width)"}
+  body: {type: mass, m: m}
+connections:
+  - [push.p, body.a]
+outputs: [body.v]
+simulate: {t_end: 1.0, dt_out: 0.1, rtol: 1.0e-9, atol: 1.0e-12}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_pulse_much_shorter_than_any_step_is_not_missed(backend):
+    """F·pulse(t, t1, width) on a free mass: the impulse F·width gives v = F·width/m after t1 + width,
+    and both edges are events, although the pulse is 1e-6 of the run."""
+    m, F, t1, width = 2.0, 3.0, 0.4, 1.0e-6
+    res = run(PULSE, backend=backend)
+    assert res.stats["backend"] == backend       # no silent fallback
+    assert np.allclose([t for t, _ in res.events], [t1, t1 + width], rtol=0, atol=1e-13)
+    assert np.allclose(res["body.v"], np.where(res.t > t1, F * width / m, 0.0), rtol=1e-9, atol=1e-15)
+
+
+def test_a_time_switch_too_fast_to_resolve_is_refused():
+    from multipole.simulate import SimulationError
+    with pytest.raises(SimulationError) as err:
+        run(SQUARE_WAVE.replace("w: 100000.0", "w: 1.0e9").replace("t_end: 0.02", "t_end: 1.0"))
+    assert err.value.code == "switching_too_fast"
+
+
+GRAZE = """
+name: graze
+parameters: {m: 1.0, F: 1.0, v0: 1.0, d: 0.4999, k: 10.0}
+elements:
+  push:   {type: force_source, value: "-F"}
+  body:   {type: mass, m: m, v0: v0}
+  stop_j: {type: junction_a, ports: [a, b, c], signs: [1, -1, -1], domain: translational}
+  stop:   {type: C, law: "k*max(q, 0)", q0: "-d", domain: translational}
+  wall:   {type: ground, domain: translational}
+connections:
+  - [push.p, body.a]
+  - [body.b, stop_j.a]
+  - [stop_j.b, wall.p]
+  - [stop_j.c, stop.p]
+outputs: [body.v, stop.q]
+simulate: {t_end: 2.0, dt_out: 0.01, solver: RK45, rtol: 1.0e-10, atol: 1.0e-12, max_step: 0.1}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_contact_entered_and_left_inside_one_step_is_found(backend):
+    """A mass thrown (v0) against a constant force F just reaches a soft stop at d: free flight is a
+    parabola the method integrates exactly in steps of max_step = 0.1 s, and the 0.028 s contact
+    lies inside one such step (the switching function is negative at both ends of the step).
+
+    Closed form: contact at t_in = (v0 - v_in)·m/F, v_in = sqrt(v0² - 2Fd/m); in contact the mass
+    oscillates about d - F/k at w = sqrt(k/m) and leaves after 2·atan2(v_in/w, F/k)/w with -v_in."""
+    m, F, v0, d, k = 1.0, 1.0, 1.0, 0.4999, 10.0
+    res = run(GRAZE, backend=backend)
+    assert res.stats["backend"] == backend       # no silent fallback
+    v_in = np.sqrt(v0 ** 2 - 2 * F * d / m)
+    t_in = (v0 - v_in) * m / F
+    w = np.sqrt(k / m)
+    t_out = t_in + 2 * np.arctan2(v_in / w, F / k) / w
+    times = [t for t, _ in res.events]
+    assert len(times) == 2
+    assert abs(times[0] - t_in) < 1e-9 and abs(times[1] - t_out) < 1e-9
+    after = res.t > t_out
+    assert np.allclose(res["body.v"][after], -v_in - F / m * (res.t[after] - t_out), rtol=0, atol=1e-9)
+
+
+TWO_STOPS = """
+name: two_stops
+parameters: {m: 1.0, v0: 1.0, d1: 0.5, d2: 0.5001, k1: 1.0e4, k2: 1.0e4}
+elements:
+  body:   {type: mass, m: m, v0: v0}
+  stop_j: {type: junction_a, ports: [a, b, c], signs: [1, -1, -1], domain: translational}
+  stops:  {type: C, law: "k1*max(q, 0) + k2*max(q - (d2 - d1), 0)", q0: "-d1", domain: translational}
+  wall:   {type: ground, domain: translational}
+connections:
+  - [body.b, stop_j.a]
+  - [stop_j.b, wall.p]
+  - [stop_j.c, stops.p]
+outputs: [body.v]
+simulate: {t_end: 1.0, dt_out: 0.01, solver: RK45, rtol: 1.0e-10, atol: 1.0e-12}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_two_contacts_inside_one_step_in_order(backend):
+    """A mass in free flight (v0) meets two compression-only stops 1e-4 m apart (one law with two
+    kinks, at q = 0 and q = d2 - d1, on the gap q measured from the first stop): both switching
+    functions change sign inside the same (long) free-flight step, and the earlier crossing must
+    be taken.  Closed form: stop 1 at t1 = d1/v0; on stop 1 alone (w1 = sqrt(k1/m)) the mass reaches
+    d2 at t2 = t1 + asin(w1 (d2 - d1)/v0)/w1 with v2 = v0 cos(w1 (t2 - t1)); on both (w = sqrt((k1+k2)/m),
+    centre xe = (k1 d1 + k2 d2)/(k1 + k2)) it is back at d2 after 2·atan2(v2/w, d2 - xe)/w, and by
+    symmetry leaves stop 1 t2 - t1 later, with -v0."""
+    m, v0, d1, d2, k1, k2 = 1.0, 1.0, 0.5, 0.5001, 1.0e4, 1.0e4
+    res = run(TWO_STOPS, backend=backend)
+    assert res.stats["backend"] == backend       # no silent fallback
+    w1 = np.sqrt(k1 / m)
+    t1 = d1 / v0
+    t2 = t1 + np.arcsin(w1 * (d2 - d1) / v0) / w1
+    v2 = v0 * np.cos(w1 * (t2 - t1))
+    w = np.sqrt((k1 + k2) / m)
+    xe = (k1 * d1 + k2 * d2) / (k1 + k2)
+    t3 = t2 + 2 * np.arctan2(v2 / w, d2 - xe) / w
+    t4 = t3 + (t2 - t1)
+    order = [text for _, text in res.events]
+    assert len(order) == 4 and order[0] == order[3] and order[1] == order[2] and order[0] != order[1]
+    assert np.allclose([t for t, _ in res.events], [t1, t2, t3, t4], rtol=0, atol=1e-9)
+    assert np.allclose(res["body.v"][res.t > t4], -v0, rtol=1e-8)

@@ -42,6 +42,7 @@ import os
 import sys
 import time
 import types
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -51,14 +52,15 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
 from .. import cache, codegen
-from ..simulate import Result, SimulationError, _Progress, check_finite, choose_solver, output_grid
+from ..errors import MultipoleError, MultipoleWarning
+from ..simulate import (MAX_EVENTS, Result, SimulationError, _Progress, check_finite, choose_solver, output_grid,
+                        solver_stats, time_switch_schedule)
 from . import numba_kernels as K
 from . import register_backend
 
 #: explicit and implicit method of this backend, and what the other scipy names run as
 METHODS = {"RK45": "RK45", "Radau": "Radau", "DOP853": "RK45", "RK23": "RK45", "BDF": "Radau", "LSODA": "Radau"}
 _DESCRIPTION = {"RK45": "Dormand-Prince 5(4)", "Radau": "Radau IIA order 5"}
-MAX_EVENTS = 5000
 #: accepted steps per call of the compiled loop while a progress bar is shown
 PROGRESS_CHUNK = 200
 
@@ -79,6 +81,9 @@ class _Printer(codegen._Printer):
         return super()._print_Pow(e, rational=rational)
 
     def _print_sign(self, e):
+        side = self._side(e.args[0])
+        if side is not None:          # held on its side during a segment, as in the kernel's printer
+            return side
         a = self._print(e.args[0])
         return f"(math.copysign(1.0, {a}) if ({a}) != 0 else 0.0)"
 
@@ -305,7 +310,7 @@ def generate(eq, outputs) -> tuple[str, list]:
             f"# kernels {_kernel_digest()}", "import math", "", "import numpy as np",
             "from numba import carray, cfunc, njit, types", "",
             "from multipole.backends import numba_kernels as _k", "", f"N_WORK = {w.work}",
-            f"N_SWITCHES = {len(sw)}", ""]
+            f"N_SWITCHES = {len(sw)}"] + codegen.time_switch_lines(w, sw) + [""]
     return "\n".join(head + w.blocks_src + body) + "\n", [str(s) for s in sw]
 
 
@@ -412,10 +417,25 @@ class _Work:
         self.LUc = np.zeros((n, n), dtype=np.complex128)
         self.pc = np.zeros(n, dtype=np.int64)
         self.w = np.zeros(n_work)
+        self.time_only = np.zeros(n_switches, dtype=np.int64)   # switches of time alone, and
+        self.sched_t = np.zeros(0)                                # their crossings (none by default)
+        self.sched_k = np.zeros(0, dtype=np.int64)
+        self.sched_side = np.zeros(0)
+        self.t_side = np.ones(n_switches)
+
+    def schedule(self, time_only, crossings, sides) -> None:
+        """The crossings ``[(t, k, side after), ...]`` of the switching functions of time alone and
+        their ``sides`` at t = 0 (:func:`multipole.simulate.time_switch_schedule`)."""
+        self.time_only = np.asarray(time_only, dtype=np.int64)
+        self.sched_t = np.array([c[0] for c in crossings], dtype=float)
+        self.sched_k = np.array([c[1] for c in crossings], dtype=np.int64)
+        self.sched_side = np.array([c[2] for c in crossings], dtype=float)
+        self.t_side = np.array(sides, dtype=float)
 
     def args(self, max_steps):
         return (self.fs, self.iw, self.x, self.f, self.grid, self.X, self.g_sign, self.ev_t, self.ev_k, self.Q,
-                self.y_old, self.J, self.LUr, self.pr, self.LUc, self.pc, self.w, max_steps)
+                self.y_old, self.J, self.LUr, self.pr, self.LUc, self.pc, self.w, self.time_only, self.sched_t,
+                self.sched_k, self.sched_side, self.t_side, max_steps)
 
 
 def _cfuncs(module) -> tuple:
@@ -485,6 +505,8 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
             choices[(solver, t_end, rtol)] = _method(module, solver, x0, t_end, rtol)
         method, reason = choices[(solver, t_end, rtol)]
         cached = _compile(module, n, len(switch_text))
+    except MultipoleError:
+        raise
     except Exception as exc:       # numba raises NumbaError, but also internal AssertionErrors
         return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
     compile_time = time.perf_counter() - start
@@ -492,6 +514,9 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     grid = output_grid(t_end, dt_out, 1 + n + len(outputs))
     rtol = max(rtol, 100 * np.finfo(float).eps)
     work = _Work(n, len(switch_text), module.N_WORK, grid, x0, t_end, rtol, atol, max_step)
+    if any(module.SWITCH_TIME_ONLY):
+        work.schedule(module.SWITCH_TIME_ONLY, *time_switch_schedule(
+            _switches_of_time(module, x0), module.SWITCH_TIME_ONLY, module.SWITCH_RATE, t_end, switch_text))
     funcs = _cfuncs(module) + (method == "Radau",)
     if progress is None:
         progress = sys.stderr.isatty()
@@ -514,24 +539,37 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     else:
         work.X[:] = np.zeros((grid.size, 0))
     bar.close()
-    newton = {"newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1])}   # before the outputs
-    if work.w[2]:
-        newton["newton_failures"] = int(work.w[2])
+    newton = {"newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1]),   # before the outputs
+              "newton_failures": int(work.w[2])}
     Y = np.zeros((grid.size, len(outputs)))
     if outputs:
         K.sample(module.outputs.address, work.w, grid, work.X, Y)
     run_time = time.perf_counter() - begin
     check_finite(grid, work.X, Y, list(equations.state_names), outputs)
     iw = work.iw
-    stats = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
-             "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),
-             **newton, "collocation_iterations": int(iw[K.I_NEWTON_IT]),
-             "translate_time": translate_time, "compile_time": compile_time, "compile_cached": cached,
-             "run_time": run_time, "wall_time": run_time, "backend": "numba"}
+    stats = solver_stats({"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
+                          "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),
+                          "events": int(iw[K.I_NEV]), "rhs_calls": int(iw[K.I_NFEV]), "jac_calls": int(iw[K.I_NJEV]),
+                          **newton, "collocation_iterations": int(iw[K.I_NEWTON_IT]),
+                          "translate_time": translate_time, "compile_time": compile_time, "compile_cached": cached,
+                          "model_cached": cached, "run_time": run_time, "wall_time": run_time, "backend": "numba"})
     events = [(float(work.ev_t[i]), switch_text[int(work.ev_k[i])]) for i in range(int(iw[K.I_NEV]))]
     out = {name: Y[:, k].copy() for k, name in enumerate(outputs)}
     units = {o: getattr(equations, "units", {}).get(o, "") for o in outputs}
     return Result(grid, out, work.X, list(equations.state_names), method, reason, stats, events, units=units)
+
+
+def _switches_of_time(module, x):
+    """``g(t)``: the model's switching functions at time t [s] and state ``x`` (for the functions of
+    time alone, whose crossings are found before the run)."""
+    x = np.ascontiguousarray(x, dtype=float)
+    w = np.zeros(module.N_WORK)
+    out = np.zeros(module.N_SWITCHES)
+
+    def g(t):
+        module.switches.ctypes(float(t), x.ctypes.data, out.ctypes.data, w.ctypes.data)
+        return out.copy()
+    return g
 
 
 def _initial_state(equations) -> np.ndarray:
@@ -555,12 +593,17 @@ def _method(module, solver, x0, t_end, rtol) -> tuple[str, str]:
 
 
 def _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc) -> Result:
-    """Run on the numpy backend when numba cannot compile the model; the reason goes with it."""
+    """Run on the numpy backend when numba cannot compile the model, visibly: a
+    :class:`~multipole.errors.MultipoleWarning` (one line on stderr from the CLI) names the reason,
+    and so do ``solver_reason`` and ``stats["backend"]`` (``numpy (fallback: reason)``)."""
     from . import get_backend
-    first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    why = f"{type(exc).__name__}: {first}"[:160]
+    warnings.warn(f"{equations.name}: the numba backend could not compile this model ({why}); "
+                  f"running the numpy backend instead", MultipoleWarning, stacklevel=3)
     result = get_backend("numpy")(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress)
-    result.solver_reason += f"; numba backend could not compile this model ({first[:160]}), ran numpy instead"
-    result.stats["backend"] = "numpy (fallback)"
+    result.solver_reason += f"; numba backend could not compile this model ({why}), ran numpy instead"
+    result.stats["backend"] = f"numpy (fallback: {why})"
     return result
 
 

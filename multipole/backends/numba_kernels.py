@@ -34,16 +34,21 @@ from numba.extending import intrinsic
 
 # -- layout of the scalar state arrays ------------------------------------------------------------
 # fs (float64)
-F_T, F_H, F_H_OLD, F_ERR_OLD, F_T_OLD, F_H_DENSE, F_T_END, F_RTOL, F_ATOL, F_MAX_STEP = range(10)
-N_FS = 10
+#: F_T_BOUND: where the current segment must end (t_end, or the next scheduled crossing of a
+#: switching function of time alone); the methods never step past it
+F_T, F_H, F_H_OLD, F_ERR_OLD, F_T_OLD, F_H_DENSE, F_T_END, F_RTOL, F_ATOL, F_MAX_STEP, F_T_BOUND = range(11)
+N_FS = 11
 #: the model's work array w: w[0] Newton iterations, w[1] Newton solves, w[2] Newton failures, then
 #: one side (±1) per switching function (read by the model functions, set at every segment start),
 #: then the Newton loops' guesses
 W_HEAD = 3
 # iw (int64)
 (I_KOUT, I_NEV, I_STEPS, I_REJECTED, I_NFEV, I_NJEV, I_NLU, I_SEGMENTS, I_STATUS, I_FRESH,
- I_CURRENT_JAC, I_LU_OK, I_SOL_OK, I_FORCED, I_FORCED_SIGN, I_NEWTON_IT) = range(16)
-N_IW = 16
+ I_CURRENT_JAC, I_LU_OK, I_SOL_OK, I_FORCED, I_FORCED_SIGN, I_NEWTON_IT, I_SCHED) = range(17)
+N_IW = 17
+#: the watched switching functions are evaluated at this many equispaced points of every step (the
+#: last is its end), as in :data:`multipole.simulate.PROBES`
+PROBES = 5
 # status codes
 RUNNING, FINISHED, STEP_TOO_SMALL, TOO_MANY_EVENTS, NOT_FINITE = 0, 1, -1, -2, -3
 DENSE_COLS = 4          # columns of the dense-output coefficient matrix Q
@@ -272,7 +277,7 @@ def dp_step(rhs, w, fs, iw, x, f, Q, y_old, ws):
     K, x_new, tmp, scale = ws[0:7], ws[7], ws[8], ws[9]
     n = x.size
     t = fs[F_T]
-    rtol, atol, t_end = fs[F_RTOL], fs[F_ATOL], fs[F_T_END]
+    rtol, atol, t_bound = fs[F_RTOL], fs[F_ATOL], fs[F_T_BOUND]
     min_step = _min_step(t)
     h_abs = min(fs[F_H], fs[F_MAX_STEP])
     if h_abs < min_step:
@@ -281,7 +286,7 @@ def dp_step(rhs, w, fs, iw, x, f, Q, y_old, ws):
     while True:
         if h_abs < min_step:
             return False
-        t_new = min(t + h_abs, t_end)
+        t_new = min(t + h_abs, t_bound)
         h = t_new - t
         h_abs = abs(h)
         for i in range(n):
@@ -428,7 +433,7 @@ def radau_step(rhs, jac, w, fs, iw, x, f, J, LUr, pr, LUc, pc, Q, y_old, ws, wc)
     bc = wc
     n = x.size
     t = fs[F_T]
-    rtol, atol, t_end, max_step = fs[F_RTOL], fs[F_ATOL], fs[F_T_END], fs[F_MAX_STEP]
+    rtol, atol, t_bound, max_step = fs[F_RTOL], fs[F_ATOL], fs[F_T_BOUND], fs[F_MAX_STEP]
     newton_tol = max(10 * EPS / rtol, min(0.03, rtol ** 0.5))
     min_step = _min_step(t)
     if fs[F_H] > max_step:
@@ -441,7 +446,7 @@ def radau_step(rhs, jac, w, fs, iw, x, f, J, LUr, pr, LUc, pc, Q, y_old, ws, wc)
     while True:
         if h_abs < min_step:
             return False
-        t_new = min(t + h_abs, t_end)
+        t_new = min(t + h_abs, t_bound)
         h = t_new - t
         h_abs = abs(h)
         # starting guess: extrapolate the previous step's collocation polynomial
@@ -563,10 +568,12 @@ def _locate(switches, w, k, Q, y_old, t_old, h, a, b, g_a, tmp, g):
 
 @njit(cache=True)
 def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t, ev_k, Q,
-              y_old, J, LUr, pr, LUc, pc, w, max_steps):
+              y_old, J, LUr, pr, LUc, pc, w, time_only, sched_t, sched_k, sched_side, t_side, max_steps):
     """Advance the run by at most ``max_steps`` accepted steps (see the module docstring).
 
-    ``implicit`` selects :func:`radau_step` (else :func:`dp_step`).
+    ``implicit`` selects :func:`radau_step` (else :func:`dp_step`).  Switching functions with
+    ``time_only[k]`` are not watched: their crossings ``sched_t`` (of function ``sched_k``, which
+    then takes side ``sched_side``) end segments; ``t_side`` holds their current sides.
     ``iw[I_STATUS]`` is set to FINISHED when every grid point is filled, or to a negative code."""
     n = x.size
     n_sw = g_sign.size
@@ -576,12 +583,28 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
     ws = np.empty((17, n))
     wc = np.empty(n, dtype=np.complex128)
     tmp = np.empty(n)
+    probe = np.empty(n)
     g = np.empty(n_sw)
     g_new = np.empty(n_sw)
+    n_watch = 0
+    for k in range(n_sw):
+        if not time_only[k]:
+            n_watch += 1
     taken = 0
     while iw[I_KOUT] < n_grid and taken < max_steps:
         if iw[I_FRESH]:                       # start of a segment: t = 0 or just past an event
             t = fs[F_T]
+            while iw[I_SCHED] < sched_t.size and sched_t[iw[I_SCHED]] <= t:    # a scheduled crossing
+                k = sched_k[iw[I_SCHED]]
+                t_side[k] = sched_side[iw[I_SCHED]]
+                if iw[I_NEV] >= ev_t.size:
+                    iw[I_STATUS] = TOO_MANY_EVENTS
+                    return
+                ev_t[iw[I_NEV]] = t
+                ev_k[iw[I_NEV]] = k
+                iw[I_NEV] += 1
+                iw[I_SCHED] += 1
+            fs[F_T_BOUND] = sched_t[iw[I_SCHED]] if iw[I_SCHED] < sched_t.size else t_end
             if n_sw:                          # the side every switch is held on in this segment
                 call_model(switches, t, x, g, w)
                 for k in range(n_sw):
@@ -591,13 +614,16 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
                     iw[I_FORCED] = -1
                 call_model(switches, t + 1e-9 * max(1.0, t_end), x, g, w)
                 for k in range(n_sw):
-                    if g_sign[k] == 0.0:      # on the switch: the side it takes just after t
+                    if time_only[k]:
+                        g_sign[k] = t_side[k]
+                    elif g_sign[k] == 0.0:    # on the switch: the side it takes just after t
                         g_sign[k] = _sign(g[k]) if g[k] != 0.0 else 1.0
                     w[W_HEAD + k] = g_sign[k]
             call_model(rhs, t, x, f, w)
             iw[I_NFEV] += 1
             order = RA_ORDER if implicit else DP_ORDER
-            fs[F_H] = _initial_step(rhs, w, t, x, f, order, fs[F_RTOL], fs[F_ATOL], t_end, fs[F_MAX_STEP], iw)
+            fs[F_H] = _initial_step(rhs, w, t, x, f, order, fs[F_RTOL], fs[F_ATOL], fs[F_T_BOUND], fs[F_MAX_STEP],
+                                    iw)
             fs[F_H_OLD] = np.nan
             fs[F_ERR_OLD] = np.nan
             if implicit:
@@ -624,17 +650,26 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
         t_old, h, t_new = fs[F_T_OLD], fs[F_H_DENSE], fs[F_T]
         t_stop = t_new
         event = -1
-        if n_sw:
-            call_model(switches, t_new, x, g_new, w)
-            for k in range(n_sw):
-                s_new = _sign(g_new[k])
-                if s_new != g_sign[k] and g_sign[k] != 0.0 and s_new != 0.0:
-                    te = _locate(switches, w, k, Q, y_old, t_old, h, t_old, t_new, g_sign[k], tmp, g)
-                    if event < 0 or te < t_stop:
-                        event, t_stop = k, te
-            for k in range(n_sw):
-                if g_sign[k] == 0.0:
-                    g_sign[k] = _sign(g_new[k])
+        if n_watch:          # the earliest crossing: the first probe interval where a switch left its side
+            a = t_old
+            for j in range(1, PROBES + 1):
+                if j == PROBES:
+                    b = t_new
+                    for i in range(n):
+                        probe[i] = x[i]
+                else:
+                    b = t_old + h * j / PROBES
+                    dense_eval(Q, y_old, t_old, h, b, probe)
+                call_model(switches, b, probe, g_new, w)
+                for k in range(n_sw):
+                    s_new = _sign(g_new[k])
+                    if not time_only[k] and s_new != g_sign[k] and s_new != 0.0:
+                        te = _locate(switches, w, k, Q, y_old, t_old, h, a, b, g_sign[k], tmp, g)
+                        if event < 0 or te < t_stop:
+                            event, t_stop = k, te
+                if event >= 0:
+                    break
+                a = b
         while iw[I_KOUT] < n_grid and grid[iw[I_KOUT]] <= t_stop + tol_t:
             k_out = iw[I_KOUT]
             if grid[k_out] >= t_new:
@@ -655,6 +690,8 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
             iw[I_NEV] += 1
             iw[I_FORCED] = event
             iw[I_FORCED_SIGN] = -int(g_sign[event])
+            iw[I_FRESH] = 1
+        elif t_new >= fs[F_T_BOUND] and fs[F_T_BOUND] < t_end:    # a scheduled crossing: new segment
             iw[I_FRESH] = 1
         elif t_new >= t_end:
             while iw[I_KOUT] < n_grid:

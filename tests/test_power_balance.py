@@ -81,6 +81,7 @@ def check_power(flat, analysis, rng) -> int:
                 continue
             terms = [val[f"{path}.{p}.e"] * val[f"{path}.{p}.f"] for p in prim.ports]
             scale = sum(abs(v) for v in terms)
+            # measured at most 1.3e-14 of the sum of |e*f| over both families; bound ~80x that
             assert abs(sum(terms)) <= 1e-12 * max(scale, 1e-300), (path, terms)
             checked += 1
     return checked

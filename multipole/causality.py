@@ -89,6 +89,7 @@ class Finding:
     path: str = ""
     words: tuple = ("", "")
     sums: list = field(default_factory=list)
+    related: list = field(default_factory=list)   # undetermined: every unknown left undetermined with them
 
 
 #: findings that make the network ill-posed (the analyser stops resolving after one)
@@ -443,7 +444,8 @@ class _Analyser:
             if missing:
                 missing = self.find_placeholders(missing, reach)
             if missing:
-                self.findings.append(Finding("undetermined", variables=sorted(missing, key=lambda v: v.name)))
+                self.findings.append(Finding("undetermined", variables=sorted(missing, key=lambda v: v.name),
+                                             related=sorted(reach, key=lambda v: v.name)))
         integrated = [s for s in self.states if s not in self.demoted]
         return Analysis(self.flat, self.equations, dict(self.m_eq), self.unknowns, integrated,
                         self.demoted, self.aliases, findings=self.findings)

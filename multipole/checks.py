@@ -32,6 +32,11 @@ def listing(names) -> str:
     return names[0] if len(names) == 1 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
+def article(word: str) -> str:
+    """``a torque``, ``an angular velocity``."""
+    return f"{'an' if word[:1].lower() in 'aeiou' else 'a'} {word}"
+
+
 def user_expression(expr) -> str:
     """A sympy expression in netlist syntax: ``Heaviside(x, 1)`` is written ``step(x)``."""
     expr = sp.sympify(expr)
@@ -93,12 +98,13 @@ class Names:
         return listing(words[:limit] + (["…"] if len(words) > limit else []))
 
     def expression(self, element: str, expr) -> str:
-        """The text the netlist gave for ``element``'s time function, else ``expr`` in netlist syntax."""
+        """``element``'s parameter with a step or pulse as the netlist wrote it (``value w0*step(t)``),
+        else ``expr`` in netlist syntax."""
         texts = getattr(self.scene, "element_values", {}).get(element, {}) if self.scene is not None else {}
-        for text in texts.values():
+        for key, text in texts.items():
             if re.search(r"\b(step|pulse)\s*\(", str(text)):
-                return str(text)
-        return user_expression(expr)
+                return f"{key} {text}"
+        return "input " + user_expression(expr)
 
 
 class Context:
@@ -194,15 +200,12 @@ def _redundancy(ctx: Context, finding) -> Diagnostic:
             f"{where} ({' + '.join(elements)}): {'kinematic' if flows else 'static'} over-determination; "
             f"the {other} there is left undetermined ({'static' if flows else 'kinematic'} under-determination)",
             f"remove one source or put {dom.compliance} between them" if flows else
-            f"put {dom.inertia} between the sources or drive one side with a {dom.flow} source instead",
+            f"put {dom.inertia} between the sources or drive one side with {article(dom.flow + ' source')} instead",
             elements=elements)
     path = loop_path(flat, elements)
-    dom = next(iter(flat.port_domains.values()))
-    for e in eqs:
-        for s in e.expr.free_symbols:
-            if s.name[:-2] in flat.port_domains:
-                dom = flat.port_domains[s.name[:-2]]
-                break
+    outer = [flat.port_domains[pp] for name, pp in flat.external_ports.items()
+             if flat.element_of(name) in elements]      # the domain of the loop's netlist ports
+    dom = max(outer, key=outer.count) if outer else next(iter(flat.port_domains.values()))
     if flows:
         return Diagnostic(
             "kinematic_overdetermination",
@@ -287,7 +290,7 @@ def powerless_source(ctx: Context):
             first = open_ports[0]
             odom = flat.port_domains[flat.external_ports[first]]
             how = f"open: no {odom.flow} flows through it" if odom.free_variable == "f" \
-                else f"a free end: nothing takes up a {odom.effort} there"
+                else f"a free end: nothing takes up {article(odom.effort)} there"
             if odom.name in ("electrical", "hydraulic"):
                 fix = f"connect {first} to ground (or to the rest of the circuit)"
             else:
@@ -376,7 +379,7 @@ def input_differentiation(ctx: Context):
         expr = flat.inputs[inputs[0]] if inputs else eq.expr
         yield Diagnostic(
             "input_differentiation",
-            f"{element}: resolving the rigid coupling needs d/dt of its value {ctx.names.expression(element, expr)}, "
+            f"{element}: resolving the rigid coupling needs d/dt of its {ctx.names.expression(element, expr)}, "
             "which contains a step or pulse: the effort would be an impulse",
             "give the input a finite rise time (ramp or smooth function) or make the coupling elastic",
             elements=[element])
@@ -423,8 +426,9 @@ def underdetermined(ctx: Context):
     flat, names = ctx.flat, ctx.names
     for f in ctx.findings("undetermined"):
         missing = f.variables
-        electrical = all(s.name[:-2] in flat.port_domains and s.name.endswith(".e")
-                         and flat.port_domains[s.name[:-2]].name in ("electrical", "hydraulic") for s in missing)
+        electrical = any(s.name[:-2] in flat.port_domains and s.name.endswith(".e")      # a floating potential
+                         and flat.port_domains[s.name[:-2]].name in ("electrical", "hydraulic")
+                         for s in list(missing) + list(f.related))
         ports = sorted({names.port(s.name[:-2]) for s in missing if names.port(s.name[:-2])})
         elements = sorted({flat.element_of(s.name) for s in missing if "." in s.name})
         yield Diagnostic(
@@ -444,8 +448,9 @@ def singular_loop(ctx: Context):
         return
     owners = getattr(exc, "owners", None)
     variables = getattr(exc, "variables", None)
-    if owners is None or variables is None:
-        yield Diagnostic("singular_loop", exc.message, exc.fix)
+    if owners is None or variables is None or not exc.message.startswith("the algebraic loop for"):
+        yield Diagnostic("singular_loop", exc.message, exc.fix,
+                         elements=ctx.names.elements_of(owners) if owners else [])
         return
     elements = ctx.names.elements_of(owners)
     yield Diagnostic(
@@ -472,6 +477,16 @@ def derivative_causality(ctx: Context):
             f"storage joined rigidly through {', '.join(elements)}: "
             f"{', '.join(s.name for s in f.states)} in derivative causality, resolved into {what} "
             f"(constrained-state form)", elements=elements)
+
+
+@register("initial_values", "info",
+          "initial values of storages in derivative causality made consistent with the rigid couplings "
+          "at t = 0 (the simulation starts there)", stage="equations")
+def initial_values(ctx: Context):
+    eq = ctx.equations()
+    for d in (eq.diagnostics if eq is not None else []):
+        if d.code == "derivative_causality":       # the consistent start the assembly computed
+            yield Diagnostic("initial_values", d.message, d.fix, elements=d.elements)
 
 
 @register("algebraic_loop", "info", "a loop without storage: solved symbolically when linear, by Newton otherwise",

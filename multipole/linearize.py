@@ -134,6 +134,7 @@ def _not_linearizable(scene, outputs, what: str) -> RunError:
 def bode(lin: Linearization, path, title=""):
     """Magnitude and phase of every input -> output pair, saved to ``path``."""
     import control
+    from matplotlib.figure import Figure      # no pyplot: the caller's backend is left alone
     sys = lin.statespace()
     modes = [m[1] for m in lin.modes() if m[1] > 0]
     lo = min(modes) / 30 if modes else 0.01
@@ -160,4 +161,3 @@ def bode(lin: Linearization, path, title=""):
     fig.suptitle(f"{title}: Bode plot (dotted: natural frequencies)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    from matplotlib.figure import Figure      # no pyplot: the caller's backend is left alone

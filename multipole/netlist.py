@@ -89,6 +89,7 @@ class Scene:
     element_lines: dict = field(default_factory=dict)
     element_types: dict = field(default_factory=dict)
     reference: dict = field(default_factory=dict)
+    element_values: dict = field(default_factory=dict)   # element -> {parameter: text as written}, for messages
 
     def where(self, element: str = "", key: str = "") -> str:
         line = self.element_lines.get(element) or self.output_lines.get(key)
@@ -156,11 +157,12 @@ class _Builder:
             raise self.err("no_elements", "the netlist needs a non-empty 'elements' mapping", line=d.lines.get("elements"))
         params = self.parameters(d.get("parameters") or _Map())
         symbols = {name: sp.Symbol(name) for name in params}
-        children, types, lines = {}, {}, {}
+        children, types, lines, texts = {}, {}, {}, {}
         for name, spec in d["elements"].items():
             line = d["elements"].lines.get(name)
             children[name], types[name] = self.element(name, spec, symbols, line)
             lines[name] = line
+            texts[name] = {k: str(v) for k, v in spec.items() if k != "type"}
         unused = set(self.overrides) - self.used_overrides
         if unused:
             raise self.err("unknown_override", f"--set {sorted(unused)[0]}: no such scene or element parameter",
@@ -183,7 +185,7 @@ class _Builder:
         digest = hashlib.sha256((text + repr(sorted(self.overrides.items()))).encode()).hexdigest()
         return Scene(str(d.get("name", Path(self.file).stem)), str(d.get("description", "")), self.file, net,
                      outputs, sim, expect, bool(d.get("bench", False)), digest, out_lines, lines, types,
-                     dict(d.get("reference") or {}))
+                     dict(d.get("reference") or {}), texts)
 
     # -- sections --------------------------------------------------------------------------------
     def parameters(self, raw) -> dict:

@@ -12,7 +12,9 @@ folder (``<class>-<verb>-<case>.yaml`` plus ``.txt`` with what was printed), so 
 re-run with ``multipole VERB FILE``.
 
 Half of the cases are *generated* (random element types from the catalogue, random parameters of
-every kind, random connections, outputs and simulate options), half *mutated* (the scenes in
+every kind, random connections, outputs and simulate options; every other one a chain that is
+well-posed by construction with random source and law expressions, so that runs happen), half
+*mutated* (the scenes in
 ``diagrams/`` with random deletions, type swaps, values replaced by strings, lists, mappings,
 huge/NaN/negative numbers and unicode, and text-level damage: YAML tags, duplicated keys, deep
 nesting, alias bombs, bad bytes).  Case ``k`` of a seed is always the same netlist.
@@ -362,12 +364,78 @@ def mutated_netlist(rng, files=None) -> str | bytes:
     return text
 
 
+def chain_netlist(rng) -> dict:
+    """A scene that is well-posed by construction, so that ``simulate`` runs it: a mechanical chain
+    (a torque or force source, bodies joined by springs, dampers with a random law, gears) or a
+    series circuit (a voltage source, R, L, C, a DC motor on an inertia), with random expressions in
+    the sources and laws, so that the run-time failures (1/t, sqrt of a negative number, exp(1000),
+    a law log(f)) are reached."""
+    elements, connections = {}, []
+    if rng.random() < 0.6:
+        rot = rng.random() < 0.6
+        dom = "rotational" if rot else "translational"
+        body = ("inertia", "J") if rot else ("mass", "m")
+        elements["src"] = {"type": "torque_source" if rot else "force_source", "value": expression(rng, "t")}
+        prev = "src.p"
+        for k in range(int(rng.integers(1, 4))):
+            elements[f"b{k}"] = {"type": body[0], body[1]: magnitude(rng, -3, 1)}
+            connections.append([prev, f"b{k}.a"])
+            kind = pick(rng, ["spring", "damper", "law", "gear", "spur"] if rot else ["spring", "damper", "law"])
+            name = f"c{k}"
+            if kind == "spring":
+                elements[name] = {"type": "spring", "c": magnitude(rng, 0, 6), "domain": dom}
+            elif kind == "damper":
+                elements[name] = {"type": "damper", "d": magnitude(rng, -2, 2), "domain": dom}
+            elif kind == "law":
+                elements[name] = {"type": "damper", "law": expression(rng, "f"), "domain": dom}
+            elif kind == "gear":
+                elements[name] = {"type": "ideal_gear", "i": number(rng)}
+            else:
+                elements[name] = {"type": "spur_stage", "r1": magnitude(rng, -2, -1), "r2": magnitude(rng, -2, -1),
+                                  "level": "elastic", "c": magnitude(rng, 5, 8)}
+            connections.append([f"b{k}.b", f"{name}.a"])
+            prev = f"{name}.b"
+        if rng.random() < 0.5:
+            elements["end"] = {"type": body[0], body[1]: magnitude(rng, -3, 1)}
+            connections.append([prev, "end.a"])
+        outputs = [f"{n}.{'omega' if rot else 'v'}" for n, e in elements.items() if e["type"] == body[0]]
+    else:
+        elements["src"] = {"type": "voltage_source", "value": expression(rng, "t")}
+        elements["gnd"] = {"type": "ground", "domain": "electrical"}
+        prev = "src.p"
+        parts = [str(pick(rng, ["R", "L", "C", "motor"])) for _ in range(int(rng.integers(1, 4)))]
+        for k, part in enumerate(parts):
+            name = f"{part}{k}"
+            if part == "R":
+                elements[name] = {"type": "resistor", "R": magnitude(rng, -2, 3)}
+            elif part == "L":
+                elements[name] = {"type": "inductor", "L": magnitude(rng, -5, 0)}
+            elif part == "C":
+                elements[name] = {"type": "capacitor", "C": magnitude(rng, -7, -2)}
+            else:
+                elements[name] = {"type": "dc_motor", "k": magnitude(rng, -3, 0), "R": magnitude(rng, -1, 1),
+                                  "L": magnitude(rng, -4, -2), "J": magnitude(rng, -5, -3), "grounded": False}
+                elements[f"load{k}"] = {"type": "damper", "law": expression(rng, "f")}
+                connections.append([f"{name}.shaft", f"load{k}.a"])
+                connections.append([prev, f"{name}.elec"])
+                prev = f"{name}.elec_n"
+                continue
+            connections.append([prev, f"{name}.a"])
+            prev = f"{name}.b"
+        connections.append([prev, "src.n", "gnd.p"])
+        outputs = ["src.i"]
+    return {"name": f"chain_{int(rng.integers(1 << 30))}", "elements": elements, "connections": connections,
+            "outputs": outputs}
+
+
 def netlist(seed: int, index: int, files=None) -> str | bytes:
-    """Case ``index`` of ``seed``: even cases generated, odd cases mutated."""
+    """Case ``index`` of ``seed``: odd cases mutated, even cases generated (every other one a chain
+    that is well-posed by construction)."""
     rng = np.random.default_rng([seed, index])
-    if index % 2 == 0:
-        return yaml.safe_dump(generated_netlist(rng), sort_keys=False, allow_unicode=True)
-    return mutated_netlist(rng, files)
+    if index % 2:
+        return mutated_netlist(rng, files)
+    doc = chain_netlist(rng) if index % 4 == 2 else generated_netlist(rng)
+    return yaml.safe_dump(doc, sort_keys=False, allow_unicode=True)
 
 
 # -- running one case ------------------------------------------------------------------------------

@@ -6,8 +6,10 @@ The driver steps scipy's ``OdeSolver`` classes itself, so that it can
 * find the zero crossings of the switching functions (steps, max/min, abs, sign, tables) and
   restart the integrator exactly there (switching laws are events, not kinks inside a step):
   during a segment every switch is held on the side it started on (``Model.rhs_in_mode``), so
-  the integrator sees a smooth right-hand side, and a crossing found after a step ends the
-  segment at the root of the switching function,
+  the integrator sees a smooth right-hand side; the crossings of the switching functions of
+  time alone are found before the run (:func:`time_switch_schedule`) and end segments, the others
+  are checked at :data:`PROBES` points of every step and the earliest crossing ends the segment
+  at the root of its switching function,
 * count accepted steps (and, for explicit Runge–Kutta methods, rejected ones),
 * show a progress bar on a terminal.
 

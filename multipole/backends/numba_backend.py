@@ -33,7 +33,8 @@ also reported as ``wall_time``) in seconds, ``compile_cached`` and the work coun
 Solvers: ``RK45`` (Dormand–Prince 5(4), explicit), ``Radau`` (Radau IIA order 5, implicit, analytic
 Jacobian) and ``auto`` (the stiffness test of :func:`multipole.simulate.choose_solver`).  ``DOP853``
 and ``RK23`` run as ``RK45``, ``BDF`` and ``LSODA`` as ``Radau``; ``Result.solver_reason`` says so.
-Models numba cannot compile run on the ``numpy`` backend, with the reason in ``solver_reason``.
+Models numba cannot compile run on the ``numpy`` backend, visibly: a ``MultipoleWarning`` names the
+reason, and so do ``stats["backend"]`` (``numpy (fallback: reason)``) and ``solver_reason``.
 """
 from __future__ import annotations
 

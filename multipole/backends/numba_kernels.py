@@ -10,9 +10,10 @@ tolerances and work counters are comparable:
   with the model's analytic Jacobian.
 
 The driver :func:`integrate` also runs in compiled code: it samples the solution on the output
-grid from the dense output, watches the model's switching functions, finds a sign change by
-bisection on the dense output and restarts the method just past it (the same event semantics as
-:func:`multipole.simulate.simulate`).  Everything the loop needs between steps lives in arrays
+grid from the dense output, ends segments at the crossings of the switching functions of time
+alone (found before the run), watches the others at :data:`PROBES` points of every step, finds the
+earliest sign change by bisection on the dense output and restarts the method just past it (the
+same event semantics as :func:`multipole.simulate.simulate`).  Everything the loop needs between steps lives in arrays
 owned by the caller, so a run can be cut into chunks (for a progress bar) without changing a
 single bit of the result.
 

@@ -248,3 +248,9 @@ def test_user_expression_writes_steps_as_the_netlist_does():
     t, w0 = sp.symbols("t w0")
     assert user_expression(w0 * sp.Heaviside(t - sp.Rational(1, 10), 1)) == "w0*step(t - 1/10)"
     assert listing(["a"]) == "a" and listing(["a", "b", "c"]) == "a, b and c"
+
+
+def test_the_diagnostics_page_lists_every_code_with_its_severity():
+    rows = dict(re.findall(r"^\| `(\w+)` \| (\w+) \|", (ROOT / "docs" / "diagnostics.md").read_text(), re.MULTILINE))
+    assert rows == {code: check.severity for code, check in REGISTRY.items()}
+    assert list(rows) == list(REGISTRY)          # in report order

@@ -639,7 +639,8 @@ def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: floa
     dense_calls = stats.pop("dense_calls")
     if solver in _STAGES:
         extra = dense_calls * (3 if solver == "DOP853" else 0)
-        attempts = (stats["nfev"] - stats["segments"] - extra) / _STAGES[solver]
+        # every segment starts with two evaluations: f(t0) and the one of the initial step size
+        attempts = (stats["nfev"] - 2 * stats["segments"] - extra) / _STAGES[solver]
         stats["rejected"] = max(int(round(attempts - stats["steps"])), 0)
     cached = bool(getattr(model, "cached", False))
     stats = solver_stats(stats, backend="numpy", events=len(events), newton_failures=len(newton_failures),

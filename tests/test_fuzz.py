@@ -25,7 +25,7 @@ _spec.loader.exec_module(fuzz)
 
 SEED = 1
 CASES = {"check": 200, "simulate": 40, "equations": 40}
-TIME_CAP = 20.0           # seconds per case; the slowest case measured takes about 2 s
+TIME_CAP = 20.0           # seconds per case; slowest measured: 6.6 s wall (0.9 s CPU) on a loaded machine
 
 
 @pytest.mark.parametrize("verb", sorted(CASES))

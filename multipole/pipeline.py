@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
@@ -21,7 +22,7 @@ from .checks import Context
 from .diagnostics import run_checks
 from .codegen import Model, compile_model
 from .equations import Equations, assemble
-from .errors import IllPosedError, MultipoleError, NetlistError
+from .errors import IllPosedError, MultipoleError, MultipoleWarning, NetlistError
 from .netlist import Scene
 from .network import flatten
 from .simulate import Result, simulate
@@ -82,6 +83,7 @@ def model(scene: Scene, outputs=None) -> Model:
         outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
         m = compile_model(eq, outs)
         m.compile_time = time.perf_counter() - start
+        m.meta["warnings"] = _warning_lines(eq.analysis)
         if slot is not None:
             _store(*slot, m)
     _MODELS[key] = m
@@ -182,16 +184,31 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
     backend = backend or opts.get("backend", "numpy")
     if backend != "numpy":
         from .backends import get_backend
-        outs = list(outputs) if outputs is not None else (scene.outputs or equations(scene).state_names)
-        return get_backend(backend)(equations(scene), outs, opts["t_end"], opts.get("dt_out"),
+        eq = equations(scene)
+        _warn(_warning_lines(eq.analysis))
+        outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
+        return get_backend(backend)(eq, outs, opts["t_end"], opts.get("dt_out"),
                                     opts.get("solver", "auto"), opts.get("rtol", 1e-6), opts.get("atol", 1e-9),
                                     opts.get("max_step", float("inf")), progress)
     m = model(scene, outputs)
+    _warn(m.meta.get("warnings", []))
     result = simulate(m, opts["t_end"], opts.get("dt_out"), opts.get("solver", "auto"), opts.get("rtol", 1e-6),
                       opts.get("atol", 1e-9), opts.get("max_step", float("inf")), progress=progress)
     result.stats["compile_time"] = m.compile_time
     result.stats["model_cached"] = m.cached
     return result
+
+
+def _warning_lines(analysis) -> list:
+    """The check's warnings (an open ground, a part nothing drives) as one line each."""
+    return [f"[{d.code}] {d.message} (fix: {d.fix})" for d in analysis.diagnostics if d.severity == "warning"]
+
+
+def _warn(lines) -> None:
+    """Repeat the check's warnings before a run: a simulation of a source cut off by an open pin
+    otherwise ends with zeros and exit 0 (one ``multipole: warning:`` line each from the CLI)."""
+    for line in lines:
+        warnings.warn(line, MultipoleWarning, stacklevel=3)
 
 
 __all__ = ["check", "equations", "model", "run", "IllPosedError"]

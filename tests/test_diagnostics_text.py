@@ -17,6 +17,7 @@ from multipole.causality import Finding
 from multipole.checks import Context, listing, user_expression
 from multipole.cli import main
 from multipole.diagnostics import REGISTRY, run_checks
+from multipole.errors import MultipoleWarning
 from multipole.netlist import load
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -216,12 +217,13 @@ def test_the_patterns_catch_what_the_issue_quoted():
 def test_open_ground_is_warned_first_and_named():
     """The forgotten ground of issue 8 §2: the supply's current is forced to zero through its open
     n pin.  The check still exits 0 (the open pin is a documented default) but the first line of
-    its report warns, naming the pin and the fix; the run indeed gives zero current."""
+    its report warns, naming the pin and the fix; a run warns too, and indeed gives zero current."""
     an = pipeline.check(scene(OPEN_GROUND))
     assert an.ok and an.diagnostics[0].code == "powerless_source"
     d = an.diagnostics[0]
     assert d.severity == "warning" and d.ports == ["supply.n"] and d.fix.startswith("connect supply.n to ground")
-    res = run(OPEN_GROUND.replace("t_end: 1.6", "t_end: 0.01"))
+    with pytest.warns(MultipoleWarning, match=r"\[powerless_source\] supply can deliver no power.*supply\.n"):
+        res = run(OPEN_GROUND.replace("t_end: 1.6", "t_end: 0.01"))      # simulate repeats the warning
     assert np.all(res["motor.current"] == 0.0)
 
 

@@ -449,8 +449,13 @@ def singular_loop(ctx: Context):
     owners = getattr(exc, "owners", None)
     variables = getattr(exc, "variables", None)
     if owners is None or variables is None or not exc.message.startswith("the algebraic loop for"):
-        yield Diagnostic("singular_loop", exc.message, exc.fix,
-                         elements=ctx.names.elements_of(owners) if owners else [])
+        message, fix, elements = exc.message, exc.fix, []
+        if owners:                  # the assembly's own words, with its element list in the netlist's names
+            elements = ctx.names.elements_of(owners)
+            raw = sorted({ctx.flat.element_of(o) for o in owners})
+            message = message.replace(", ".join(raw), ", ".join(elements))
+            fix = fix.replace(raw[0], elements[0]) if raw[0] not in elements else fix
+        yield Diagnostic("singular_loop", message, fix, elements=elements)
         return
     elements = ctx.names.elements_of(owners)
     yield Diagnostic(

@@ -206,6 +206,16 @@ def test_scenes_in_diagrams_show_no_internal_names_and_no_false_warning(path):
     assert [d.code for d in diagnostics if d.severity == "warning"] == []
 
 
+def test_a_nonlinear_loop_without_solution_at_the_start_is_named_by_its_elements():
+    """The second kind of singular loop: a massless pinion whose Coulomb tooth friction has no
+    solution at t = 0 (see tests/test_derivative_causality.py)."""
+    from test_derivative_causality import MASSLESS_PINION
+    an = pipeline.check(scene(MASSLESS_PINION.replace("DAMPING", "0.0")))
+    [d] = an.errors
+    assert d.code == "singular_loop" and "through mesh" in d.message and d.elements == ["mesh"]
+    assert internal_names(f"{d.message}\n{d.fix}") == []
+
+
 def test_the_patterns_catch_what_the_issue_quoted():
     """The texts issue 8 quoted before the fix are all rejected (so the patterns can fail)."""
     for bad in ("the torque around node(d, node(k is imposed twice", "add a spring at shaft.j.b",

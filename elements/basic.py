@@ -139,7 +139,7 @@ register(ElementType(
 register(ElementType(
     "ideal_gear", lambda i: TF(i, "rotational", "rotational"),
     "rigid gear stage: f_a = i*f_b, e_b = -i*e_a (i < 0 reverses the direction)", _TWO,
-    [Param("i", "-", "ratio omega_a/omega_b")]))
+    [Param("i", "-", "ratio omega_a/omega_b", nonzero=True)]))
 register(ElementType("resistor", lambda R: resistor(R), "resistor: e_a - e_b = R*i", _TWO,
                      [Param("R", "Ohm", "resistance", positive=True)],
                      {"i": "A: current from a to b", "v": "V: voltage e_a - e_b"}))

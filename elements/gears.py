@@ -340,25 +340,27 @@ _LAW_DOC = ("a number or an expression of the mesh phase q = z1*phi1 [rad] (one 
             "'interp(acos(cos(q)), [1.1, 1.4], [c_single, c_double])'")
 
 SPUR_PARAMS = [
-    Param("r1", "m", "operating pitch radius of wheel 1 (port a)"),
-    Param("r2", "m", "operating pitch radius of wheel 2 (port b); the ring gear's radius if internal"),
+    Param("r1", "m", "operating pitch radius of wheel 1 (port a)", positive=True),
+    Param("r2", "m", "operating pitch radius of wheel 2 (port b); the ring gear's radius if internal", positive=True),
     Param("level", "", "ideal (rigid TF pair), elastic (mesh spring along the circumference), normal (normal "
           "spring + tangential tooth friction)", "ideal", "choice", LEVELS),
     Param("internal", "", "wheel 2 is an internal ring gear: the shafts turn the same way, i = +r2/r1", False,
           "bool"),
-    Param("c", "N/m", "elastic: circumferential mesh stiffness, " + _LAW_DOC, None, "law", law_var="q"),
-    Param("c_n", "N/m", "normal: tooth normal stiffness, " + _LAW_DOC, None, "law", law_var="q"),
+    Param("c", "N/m", "elastic: circumferential mesh stiffness, " + _LAW_DOC, None, "law", law_var="q",
+          positive=True),
+    Param("c_n", "N/m", "normal: tooth normal stiffness, " + _LAW_DOC, None, "law", law_var="q", positive=True),
     Param("d", "N*s/m", "elastic/normal: mesh damping in parallel with the mesh spring", 0.0),
     Param("x0", "m", "elastic/normal: initial mesh deflection (mounting error, preload)", 0.0),
-    Param("z1", "-", "teeth of wheel 1; the mesh phase is q = z1*phi1 (normal: required unless s is given)", None),
+    Param("z1", "-", "teeth of wheel 1; the mesh phase is q = z1*phi1 (normal: required unless s is given)", None,
+          positive=True),
     Param("phase0", "rad", "initial mesh phase q(0)", 0.0),
     Param("alpha", "rad", "normal: operating pressure angle (involute: constant)", math.radians(20.0)),
     Param("s", "m", "normal: contact point on the line of action, measured from the pitch point towards wheel 2's "
           "tangent point, as an expression of the mesh phase q; default: involute single contact "
           "(r1*cos(alpha)/z1)*atan2(sin(q), cos(q))", None, "law", law_var="q"),
     Param("mu", "-", "normal: Coulomb tooth friction coefficient, F_t = mu*|F_n|*tanh(v_t/v_reg) with F_n the "
-          "tooth spring force", None),
-    Param("v_reg", "m/s", "normal: sliding velocity of the Coulomb regularisation", 1e-3),
+          "tooth spring force", None, nonnegative=True),
+    Param("v_reg", "m/s", "normal: sliding velocity of the Coulomb regularisation", 1e-3, positive=True),
     Param("d_t", "N*s/m", "normal: viscous tooth friction in the tangential branch", None),
 ]
 
@@ -383,16 +385,17 @@ register(ElementType(
     "gear_train", lambda **kw: gear_train(**kw),
     "spur stages in series (lists r1, r2; shared level, c, d); overall ratio = product of the stage ratios",
     {"a": "input shaft (rotational)", "b": "output shaft (rotational)"},
-    [Param("r1", "m", "pitch radii of the driving wheels, one per stage", kind="numbers"),
-     Param("r2", "m", "pitch radii of the driven wheels, one per stage", kind="numbers"),
+    [Param("r1", "m", "pitch radii of the driving wheels, one per stage", kind="numbers", positive=True),
+     Param("r2", "m", "pitch radii of the driven wheels, one per stage", kind="numbers", positive=True),
      Param("level", "", "ideal or elastic (all stages)", "ideal", "choice", ("ideal", "elastic")),
      Param("internal", "", "all stages internal meshes", False, "bool"),
-     Param("c", "N/m", "elastic: mesh stiffness of every stage, " + _LAW_DOC, None, "law", law_var="q"),
+     Param("c", "N/m", "elastic: mesh stiffness of every stage, " + _LAW_DOC, None, "law", law_var="q",
+           positive=True),
      Param("d", "N*s/m", "elastic: mesh damping of every stage", 0.0),
      Param("J", "kg*m^2", "inertias of the intermediate shafts (n-1 values); massless if omitted", None,
-           "numbers"),
+           "numbers", positive=True),
      Param("z1", "-", "teeth of the driving wheel of each stage (n values); the mesh phase of stage k is "
-           "q = z1[k]*phi of its input shaft", None, "numbers")],
+           "q = z1[k]*phi of its input shaft", None, "numbers", positive=True)],
     {"ratio": "-: overall ratio omega_a/omega_b", "s<k>.force": "N: mesh force of stage k",
      "s<k>.deflection": "m: mesh deflection of stage k (elastic)",
      "s<k>.stiffness": "N/m: current mesh stiffness of stage k (elastic)",

@@ -49,10 +49,13 @@ parallel through two type-a junctions ``plus``/``minus`` (the same voltage, the 
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import sympy as sp
 
 from multipole import CField, I, R, ElementType, ModelError, Network, Param, Quantity, junction_a, junction_b, register
 
+MAX_STACK = 50       # largest piezo_stack n a netlist may ask for (checked by the loader)
 _NAMES = ("k_P", "delta_P", "C_P", "m", "R")
 _S = {name: sp.Symbol(name) for name in _NAMES}
 
@@ -156,11 +159,11 @@ _PORTS = {"mech_a": "translational: base (Weber port 0); force on the element, v
           "elec_a": "electrical: positive electrode (current into it charges the element)",
           "elec_b": "electrical: negative electrode"}
 _PARAMS = [
-    Param("k_P", "m/V = C/N", "piezo constant: extension per volt = charge per newton (reciprocal)"),
-    Param("delta_P", "m/N", "compliance at constant voltage (shorted); open: delta_P - k_P^2/C_P"),
-    Param("C_P", "F", "capacitance at constant force (free); blocked: C_P - k_P^2/delta_P"),
-    Param("m", "kg", "moving mass at the tip (literal 0: massless, Weber Bild 11)", 0.0),
-    Param("R", "Ohm", "series resistance of electrodes and leads (literal 0: ideal)", 0.0),
+    Param("k_P", "m/V = C/N", "piezo constant: extension per volt = charge per newton (reciprocal)", nonzero=True),
+    Param("delta_P", "m/N", "compliance at constant voltage (shorted); open: delta_P - k_P^2/C_P", positive=True),
+    Param("C_P", "F", "capacitance at constant force (free); blocked: C_P - k_P^2/delta_P", positive=True),
+    Param("m", "kg", "moving mass at the tip (literal 0: massless, Weber Bild 11)", 0.0, nonnegative=True),
+    Param("R", "Ohm", "series resistance of electrodes and leads (literal 0: ideal)", 0.0, nonnegative=True),
 ]
 _QTY = {"stroke": "m: extension s1 - s0 (Weber Δs*)",
         "force": "N: tension in the active part, (-F0) of Weber (53); = force at mech_b in statics",
@@ -180,6 +183,6 @@ register(ElementType(
     lambda n, k_P, delta_P, C_P, m, R: piezo_stack(n, k_P, delta_P, C_P, m, R),
     "piezo stack translator (Weber Bild 38): n piezo_elements, mechanically in series, "
     "electrically in parallel",
-    _PORTS, [Param("n", "-", "number of elements (whole number)")] +
-    [Param(p.name, p.unit, p.doc + " (of one element)", p.default) for p in _PARAMS],
+    _PORTS, [Param("n", "-", f"number of elements (whole number, at most {MAX_STACK})", positive=True, maximum=MAX_STACK)] +
+    [replace(p, doc=p.doc + " (of one element)") for p in _PARAMS],
     _QTY))

@@ -34,10 +34,25 @@ class Param:
     choices: tuple = ()
     law_var: str = ""
     positive: bool = False            # a number that must be > 0 (inertia, stiffness, ...)
+    nonnegative: bool = False         # >= 0 (a literal 0 leaves the part out: massless rotor, ...)
+    nonzero: bool = False             # != 0 (ratios of transformers and gears)
+    maximum: float | None = None      # largest accepted value (counts of repeated elements)
 
     @property
     def required(self) -> bool:
         return self.default is REQUIRED
+
+    def problem(self, value: float) -> str:
+        """Why the constant ``value`` is not acceptable for this parameter ('' when it is)."""
+        if self.positive and not value > 0:
+            return "must be positive"
+        if self.nonnegative and not value >= 0:
+            return "must not be negative"
+        if self.nonzero and value == 0:
+            return "must not be zero"
+        if self.maximum is not None and not value <= self.maximum:
+            return f"must be at most {self.maximum:g}"
+        return ""
 
 
 @dataclass
@@ -128,7 +143,7 @@ register(ElementType(
     "TF", lambda ratio, domain_a, domain_b, q0: TF(ratio, domain_a, domain_b, q0),
     "ideal transformer f_a = k*f_b, e_b = -k*e_a; k may depend on q, the displacement of port b",
     {"a": "port a (domain_a)", "b": "port b (domain_b); q = ∫ f_b dt"},
-    [Param("ratio", "f_a/f_b", "ratio k, a number or an expression of q", kind="law", law_var="q"),
+    [Param("ratio", "f_a/f_b", "ratio k, a number or an expression of q", kind="law", law_var="q", nonzero=True),
      Param("domain_a", "", "domain of port a", "rotational", "choice", _DOMAIN.choices),
      Param("domain_b", "", "domain of port b", "rotational", "choice", _DOMAIN.choices),
      Param("q0", "displacement unit of b", "initial displacement of port b", 0.0)],
@@ -136,21 +151,21 @@ register(ElementType(
 register(ElementType(
     "GY", lambda r, domain_a, domain_b: GY(r, domain_a, domain_b), "ideal gyrator e_a = r*f_b, e_b = -r*f_a",
     {"a": "port a", "b": "port b"},
-    [Param("r", "e_a/f_b", "gyrator modulus"),
+    [Param("r", "e_a/f_b", "gyrator modulus", nonzero=True),
      Param("domain_a", "", "domain of port a", "electrical", "choice", _DOMAIN.choices),
      Param("domain_b", "", "domain of port b", "rotational", "choice", _DOMAIN.choices)],
     category="primitive"))
 register(ElementType(
     "I", lambda J, law, domain, p0: I(J=J, law=law, dom=domain, p0=p0), "inertia one-port: p' = e, f = p/J",
     {"p": "the port"},
-    [Param("J", "kg*m^2 | kg | H", "inertia (or give law)", None),
+    [Param("J", "kg*m^2 | kg | H", "inertia (or give law)", None, positive=True),
      Param("law", "flow unit", "flow as a function of the momentum p", None, "law", law_var="p"), _DOMAIN,
      Param("p0", "momentum unit", "initial momentum", 0.0)],
     {"p": "momentum"}, one_of=(("J", "law"),), category="primitive"))
 register(ElementType(
     "C", lambda c, law, domain, q0: C(c=c, law=law, dom=domain, q0=q0), "compliance one-port: q' = f, e = c*q",
     {"p": "the port"},
-    [Param("c", "effort/displacement", "stiffness (or give law)", None),
+    [Param("c", "effort/displacement", "stiffness (or give law)", None, positive=True),
      Param("law", "effort unit", "effort as a function of the displacement q", None, "law", law_var="q"),
      _DOMAIN, Param("q0", "displacement unit", "initial displacement", 0.0)],
     {"q": "displacement"}, one_of=(("c", "law"),), category="primitive"))

@@ -42,27 +42,40 @@ Functions
     y above the last x.  The x values must be numbers, strictly increasing, at least two, and
     as many as the y values; the y values may be expressions.  Lists are allowed only here.
 
+Only the functions above may be called (an explicit allow-list, :data:`FUNCTIONS`); every other
+call, such as ``gamma(t)``, ``factorial(5)``, ``Integral(t, t)`` or ``eval(1)``, is refused.
+``pi`` is the only constant: ``E``, ``I``, ``oo``, ``nan`` and other sympy names are unknown names
+(write ``exp(1)`` for e).  The names in :data:`RESERVED_NAMES` (``t``, the law variables ``f``,
+``q``, ``p``, the matrix displacements ``q1``, ``q2``, ..., ``pi``, the function names and Python
+keywords) cannot be parameter names: :func:`reserved` tells whether a name is one of them.
+
 Limits: at most 2000 characters and at most 50 levels of nesting (long flat sums and
-products do not count as nesting); exact powers that would be enormous, like ``9**9**9``, are
+products do not count as nesting); integer literals of at most 300 digits; exact powers that
+would be enormous, like ``9**9**9``, are refused.  A constant part that is not a real number
+(``sqrt(-1)``, ``log(-2)``, ``acos(2)``, ``(-8)**(1/3)``, whose principal value is complex) is
 refused.  Errors are raised as
 :class:`multipole.errors.NetlistError` with code ``bad_expression`` (syntax or unsupported
-construct), ``unknown_name`` (a name the context does not define) or ``unsafe_expression``
-(attribute access, double-underscore names, lambda, subscripts, calls of other names).
+construct), ``unknown_name`` (a name the context does not define), ``complex_value`` (a constant
+that is not real) or ``unsafe_expression`` (attribute access, double-underscore names, lambda,
+subscripts, calls of names that are not in the function list).
 """
 from __future__ import annotations
 
 import ast
+import keyword
 import math
+import re
 from typing import Mapping
 
 import sympy
 
 from multipole.errors import NetlistError
 
-__all__ = ["FUNCTIONS", "parse_expression"]
+__all__ = ["FUNCTIONS", "RESERVED_NAMES", "parse_expression", "reserved"]
 
 MAX_LENGTH = 2000
 MAX_DEPTH = 50
+MAX_DIGITS = 300           # longest integer literal (beyond it a float conversion overflows)
 _MAX_POWER_BITS = 100_000  # refuse exact powers whose result would exceed about this many bits
 
 
@@ -94,7 +107,29 @@ _TABLE = {
 }
 
 FUNCTIONS: tuple[str, ...] = tuple(_TABLE)
-"""Names of the functions an expression may call."""
+"""Names of the functions an expression may call (the allow-list; docs/netlist.md lists the same)."""
+
+_ALLOWED_CALLS = frozenset(FUNCTIONS)
+
+RESERVED_NAMES: frozenset = frozenset({"t", "f", "q", "p", "pi", *FUNCTIONS, *keyword.kwlist})
+"""Names a scene parameter may not take: time, the law variables, ``pi``, functions, keywords."""
+
+_RESERVED_PATTERN = re.compile(r"q[1-9][0-9]*")    # q1, q2, ...: displacements in modulated matrices
+
+
+def reserved(name: str) -> bool:
+    """True if ``name`` means something in the expression language (not usable as a parameter)."""
+    return name in RESERVED_NAMES or bool(_RESERVED_PATTERN.fullmatch(name))
+
+
+def _complex_part(expr: sympy.Expr):
+    """The first constant part of ``expr`` that is not a real number, or None."""
+    if expr.has(sympy.I):
+        return expr
+    for part in expr.atoms(sympy.Pow, sympy.Function):
+        if part.is_number and part.is_extended_real is False:
+            return part
+    return None
 
 _BINARY = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**"}
 _DESCRIPTIONS = {
@@ -125,6 +160,9 @@ def parse_expression(source, symbols: Mapping[str, sympy.Basic], where: str = ""
                            f"expected a number or a formula, got {type(source).__name__} {source!r}",
                            _SYNTAX_HINT, where)
     if isinstance(source, int):
+        if abs(source) >= 10 ** MAX_DIGITS:
+            raise NetlistError("bad_expression", f"the integer has more than {MAX_DIGITS} digits",
+                               "write a decimal number such as 1.5e20", where)
         return sympy.Integer(source)
     if isinstance(source, float):
         if not math.isfinite(source):
@@ -171,6 +209,12 @@ class _Parser:
             raise self.error("bad_expression",
                              f"the expression {_quote(self.text)} is infinite or undefined ({result})",
                              "check for division by zero or log(0)")
+        bad = _complex_part(result)
+        if bad is not None:
+            raise self.error("complex_value",
+                             f"the expression {_quote(self.text)} has a part that is not a real number ({bad})",
+                             "only real values are supported: check signs under sqrt, log, acos, asin and "
+                             "fractional powers")
         return result
 
     def walk(self, node: ast.AST, depth: int) -> sympy.Expr:
@@ -202,6 +246,9 @@ class _Parser:
     def constant(self, node: ast.Constant) -> sympy.Expr:
         value = node.value
         if isinstance(value, int) and not isinstance(value, bool):
+            if abs(value) >= 10 ** MAX_DIGITS:
+                raise self.error("bad_expression", f"an integer in {self.segment(node)} has more than "
+                                 f"{MAX_DIGITS} digits", "write a decimal number such as 1.5e20")
             return sympy.Integer(value)
         if isinstance(value, float) and math.isfinite(value):
             return sympy.Float(value)
@@ -277,7 +324,7 @@ class _Parser:
 
     def call(self, node: ast.Call, depth: int) -> sympy.Expr:
         func = node.func
-        if not isinstance(func, ast.Name) or func.id not in _TABLE:
+        if not isinstance(func, ast.Name) or func.id not in _ALLOWED_CALLS:
             raise self.error("unsafe_expression",
                              f"only these functions may be called: {', '.join(FUNCTIONS)}; "
                              f"got {self.segment(func)}", "use one of the listed functions")

@@ -1,7 +1,9 @@
 """YAML netlists (DESIGN §5): untrusted text in, a :class:`Scene` out.
 
 * YAML is read with a loader derived from ``yaml.SafeLoader`` that only adds line numbers (no
-  Python object tags, duplicate keys refused).
+  Python object tags, duplicate keys refused), reads ``1e-3`` and ``-2E+5`` as numbers (YAML 1.2
+  floats) and bounds the input (:data:`MAX_FILE_BYTES`, :data:`MAX_YAML_NODES` after alias
+  expansion, :data:`MAX_ELEMENTS`).
 * Every formula goes through :func:`multipole.expressions.parse_expression` (a whitelist).
 * Every error is a :class:`~multipole.errors.NetlistError` naming the file, line and element.
 
@@ -11,6 +13,7 @@ parameter (``mesh.c=1e9``) before anything is built.
 from __future__ import annotations
 
 import hashlib
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +23,7 @@ import yaml
 
 from .catalogue import ElementType, catalogue
 from .errors import MultipoleError, NetlistError
-from .expressions import parse_expression
+from .expressions import MAX_DIGITS, parse_expression, reserved
 from .network import Network
 from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive
 
@@ -30,6 +33,18 @@ _TOP_KEYS = {"name", "description", "parameters", "elements", "connections", "ou
 _SIM_KEYS = {"t_end": float, "dt_out": float, "solver": str, "rtol": float, "atol": float,
              "max_step": float, "backend": str}
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_SCENE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.+\- ]{0,79}$")
+
+MAX_FILE_BYTES = 1 << 20          # 1 MiB: larger files are refused without reading them whole
+MAX_YAML_NODES = 100_000          # YAML nodes after expanding aliases (refuses "billion laughs")
+MAX_ELEMENTS = 1000               # elements in one scene
+MAX_LIST = 1000                   # entries of a list parameter
+MAX_OUTPUT_ROWS = 10_000_000      # rows of the output grid, t_end/dt_out
+MAX_STEPS = 100_000_000           # t_end/max_step
+MIN_RTOL = 1e-14                  # below it the integrators cannot meet the tolerance in float64
+
+# YAML 1.2 core-schema floats: PyYAML (YAML 1.1) reads 1e-3, 1e3, 1.0e9 and -2E+5 as strings
+_FLOAT_12 = re.compile(r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)[eE][-+]?[0-9]+$")
 
 
 class _Map(dict):
@@ -43,7 +58,73 @@ class _List(list):
 
 
 class _Loader(yaml.SafeLoader):
-    """SafeLoader that records the line of every mapping key and sequence item."""
+    """SafeLoader that records the line of every mapping key and sequence item and bounds the input."""
+
+    def compose_document(self):
+        node = super().compose_document()
+        _check_size(node)
+        return node
+
+    def construct_object(self, node, deep=False):
+        try:
+            return super().construct_object(node, deep)
+        except (NetlistError, yaml.YAMLError):
+            raise
+        except (ValueError, TypeError, KeyError, AttributeError, OverflowError, ArithmeticError) as exc:
+            value = node.value if isinstance(node, yaml.ScalarNode) else ""
+            raise NetlistError("yaml_value", f"cannot read {str(value)[:40]!r} as {node.tag.rsplit(':', 1)[-1]}",
+                               "write a plain number or text without a '!!' tag",
+                               where=f":{node.start_mark.line + 1}") from None
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
+
+
+def _children(node):
+    if isinstance(node, yaml.SequenceNode):
+        return node.value
+    if isinstance(node, yaml.MappingNode):
+        return [n for pair in node.value for n in pair]
+    return []
+
+
+def _check_size(root) -> None:
+    """Refuse a document of more than MAX_YAML_NODES nodes once aliases are expanded, or a cycle."""
+    if root is None:
+        return
+    size: dict = {}
+    open_: set = set()
+    stack = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        if done:
+            open_.discard(key)
+            size[key] = 1 + sum(size[id(c)] for c in _children(node))
+            if size[key] > MAX_YAML_NODES:
+                raise NetlistError("too_large", f"the YAML document expands to more than {MAX_YAML_NODES} "
+                                   "values (aliases *name repeat what they refer to)",
+                                   "write the netlist without nested aliases",
+                                   where=f":{node.start_mark.line + 1}")
+            continue
+        if key in size:
+            continue
+        open_.add(key)
+        stack.append((node, True))
+        for child in _children(node):
+            if id(child) in open_:
+                raise NetlistError("yaml_syntax", "an alias refers to the mapping or list that contains it",
+                                   "remove the recursive alias", where=f":{child.start_mark.line + 1}")
+            if id(child) not in size:
+                stack.append((child, False))
+
+
+def _construct_int(loader, node):
+    digits = str(node.value).lstrip("+-").replace("_", "")
+    if len(digits) > MAX_DIGITS:
+        raise NetlistError("too_large", f"an integer of {len(digits)} digits (limit {MAX_DIGITS})",
+                           "write a decimal number such as 1.5e20", where=f":{node.start_mark.line + 1}")
+    return loader.construct_yaml_int(node)
 
 
 def _construct_map(loader, node):
@@ -70,6 +151,7 @@ def _construct_seq(loader, node):
 
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
 _Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _construct_seq)
+_Loader.add_constructor("tag:yaml.org,2002:int", _construct_int)
 
 
 @dataclass
@@ -98,19 +180,33 @@ class Scene:
 
 
 def load(path, overrides=None) -> Scene:
-    """Read a netlist file."""
-    p = Path(path)
+    """Read a netlist file (UTF-8, at most :data:`MAX_FILE_BYTES` bytes)."""
     try:
-        text = p.read_text(encoding="utf-8")
+        with open(path, "rb") as fh:
+            data = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise NetlistError("no_file", f"cannot read {path}: {exc.strerror}", "check the path") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise NetlistError("too_large", f"the file is larger than {MAX_FILE_BYTES // 1024} KiB",
+                           "a netlist is a short text file: check the path", str(path))
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise NetlistError("not_utf8", f"the file is not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})",
+                           "save the file as UTF-8", f"{path}:{line}") from None
     return loads(text, str(path), overrides)
 
 
 def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
     """Read a netlist from text; ``filename`` is used in error messages."""
+    if len(text) > MAX_FILE_BYTES:
+        raise NetlistError("too_large", f"the netlist is longer than {MAX_FILE_BYTES // 1024} KiB",
+                           "a netlist is a short text", filename)
     try:
         data = yaml.load(text, Loader=_Loader)  # noqa: S506 — a SafeLoader subclass
+    except RecursionError:
+        raise NetlistError("too_large", "the YAML is nested too deeply", "flatten the netlist", filename) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = f":{mark.line + 1}" if mark else ""
@@ -124,12 +220,63 @@ def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
     return _Builder(data, filename, dict(overrides or {})).scene(text)
 
 
-def _resolve(params: dict) -> dict:
-    """{Symbol: number} of the scene parameters (they may refer to each other; no cycles)."""
-    values = {sp.Symbol(k): sp.sympify(v) for k, v in params.items()}
-    for _ in range(len(values) + 1):
-        values = {k: v.xreplace(values) for k, v in values.items()}
-    return {k: v for k, v in values.items() if v.is_number}
+def validate_simulate_options(options: dict, where: str = "", lines: dict | None = None) -> dict:
+    """Check the simulate options (``t_end``, ``dt_out``, ``rtol``, ``atol``, ``max_step``, ``solver``,
+    ``backend``) and return them with numbers as floats; ``None`` values are left out.
+
+    Used by the loader for the ``simulate:`` section and by the CLI for ``--t-end``, ``--dt-out``,
+    ``--rtol`` and ``--atol`` (pass the scene's options merged with the overrides so that
+    ``dt_out <= t_end`` is checked across both).  Raises :class:`NetlistError` (code ``not_numeric``
+    for a value that is not a positive finite number, ``bad_option`` for one out of range,
+    ``unknown_key``, ``unknown_solver``); ``where`` is the file name and ``lines`` maps an option
+    to its line.
+    """
+    lines = lines or {}
+
+    def err(code, key, message, fix=""):
+        line = lines.get(key)
+        return NetlistError(code, message, fix, f"{where}:{line}" if line and where else where)
+
+    out = {}
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key not in _SIM_KEYS:
+            raise err("unknown_key", key, f"unknown simulate option {key!r}", f"allowed: {', '.join(_SIM_KEYS)}")
+        if _SIM_KEYS[key] is str:
+            if not isinstance(value, str):
+                raise err("bad_option", key, f"simulate.{key} must be a name, got {value!r}")
+            out[key] = value
+            continue
+        try:
+            number = float(value) if not isinstance(value, (bool, str)) else math.nan
+        except (TypeError, ValueError, OverflowError):
+            number = math.nan
+        if not math.isfinite(number) or not number > 0:
+            raise err("not_numeric", key, f"simulate.{key} must be a positive finite number, got {value!r}",
+                      "e.g. t_end: 0.5, dt_out: 1.0e-3, rtol: 1.0e-6")
+        out[key] = number
+    rtol = out.get("rtol")
+    if rtol is not None and not MIN_RTOL <= rtol < 1:
+        raise err("bad_option", "rtol", f"simulate.rtol = {rtol:g} is outside [{MIN_RTOL:g}, 1)",
+                  "typical values are 1e-3 to 1e-10")
+    t_end, dt_out, max_step = out.get("t_end"), out.get("dt_out"), out.get("max_step")
+    if t_end is not None and dt_out is not None:
+        if dt_out > t_end:
+            raise err("bad_option", "dt_out", f"simulate.dt_out = {dt_out:g} s is longer than t_end = {t_end:g} s",
+                      "choose dt_out <= t_end")
+        if t_end / dt_out > MAX_OUTPUT_ROWS:
+            raise err("bad_option", "dt_out", f"t_end/dt_out = {t_end / dt_out:.3g} output rows "
+                      f"(limit {MAX_OUTPUT_ROWS:.0e})", "choose a larger dt_out or a shorter t_end")
+    if t_end is not None and max_step is not None and t_end / max_step > MAX_STEPS:
+        raise err("bad_option", "max_step", f"t_end/max_step = {t_end / max_step:.3g} steps (limit {MAX_STEPS:.0e})",
+                  "choose a larger max_step")
+    if "solver" in out:
+        from .solvers import SOLVERS
+        if out["solver"] != "auto" and out["solver"] not in SOLVERS:
+            raise err("unknown_solver", "solver", f"unknown solver {out['solver']!r}",
+                      f"use auto or one of {', '.join(SOLVERS)}")
+    return out
 
 
 class _Builder:
@@ -155,6 +302,13 @@ class _Builder:
                                f"allowed: {', '.join(sorted(_TOP_KEYS))}", d.lines.get(key))
         if "elements" not in d or not isinstance(d["elements"], dict) or not d["elements"]:
             raise self.err("no_elements", "the netlist needs a non-empty 'elements' mapping", line=d.lines.get("elements"))
+        if len(d["elements"]) > MAX_ELEMENTS:
+            raise self.err("too_large", f"{len(d['elements'])} elements (limit {MAX_ELEMENTS})",
+                           "split the scene or use elements that repeat a part (e.g. piezo_stack n)",
+                           d.lines.get("elements"))
+        if "name" in d and not (isinstance(d["name"], str) and _SCENE_NAME.match(d["name"])):
+            raise self.err("bad_name", f"scene name {str(d['name'])[:40]!r} may use letters, digits, spaces and _ . + -",
+                           "e.g. name: gear_stage", d.lines.get("name"))
         params = self.parameters(d.get("parameters") or _Map())
         symbols = {name: sp.Symbol(name) for name in params}
         children, types, lines, texts = {}, {}, {}, {}
@@ -191,34 +345,61 @@ class _Builder:
     def parameters(self, raw) -> dict:
         if not isinstance(raw, dict):
             raise self.err("bad_value", "'parameters' must be a mapping name: value", line=getattr(raw, "line", None))
-        names = {n: sp.Symbol(n) for n in raw}
+        names = {n: sp.Symbol(n) for n in raw if isinstance(n, str)}
         out = {}
         for name, value in raw.items():
             line = raw.lines.get(name)
             if not isinstance(name, str) or not _NAME.match(name):
                 raise self.err("bad_name", f"parameter name {name!r} is not a plain name", line=line)
+            if reserved(name):
+                raise self.err("reserved_name", f"parameter name {name!r} is reserved in formulas "
+                               "(time t, law variables f q p, pi, function names)",
+                               f"rename the parameter, e.g. {name}_0", line)
             if name in self.overrides:
                 value = self.overrides[name]
                 self.used_overrides.add(name)
             others = {k: v for k, v in names.items() if k != name}
             out[name] = self.expr(value, others, f"parameter '{name}'", line)
-        self.check_cycles(out)
-        self.numbers = _resolve(out)
+        self.numbers = self.evaluate(out, raw.lines)
         return out
 
-    def check_cycles(self, params):
+    def evaluate(self, params: dict, lines: dict) -> dict:
+        """{Symbol: Float} of the scene parameters, evaluated numerically in dependency order.
+
+        Numbers, never symbolic substitution: chains like ``p2: p1*p1 + p1`` stay linear in size.
+        A cycle is a ``parameter_cycle``; a value that is not finite or not real is refused.
+        """
         import networkx as nx
         g = nx.DiGraph()
         for k, v in params.items():
             g.add_node(k)
             for s in v.free_symbols:
-                g.add_edge(k, s.name)
+                g.add_edge(s.name, k)
         try:
             cycle = nx.find_cycle(g)
         except nx.NetworkXNoCycle:
-            return
-        raise self.err("parameter_cycle", "parameters refer to each other in a cycle: "
-                       + " -> ".join(a for a, _ in cycle), "give one of them a number")
+            cycle = None
+        if cycle:
+            names = [b for _, b in cycle]
+            first = min(names, key=lambda n: lines.get(n, 0))
+            k = names.index(first)
+            path = names[k:] + names[:k + 1]
+            raise self.err("parameter_cycle", f"parameter '{first}' depends on itself: " + " -> ".join(path),
+                           "give one of them a number", lines.get(first))
+        numbers: dict = {}
+        for name in nx.topological_sort(g):
+            value = sp.N(params[name].xreplace(numbers))
+            if not value.is_number:
+                continue
+            number = complex(value) if not value.has(sp.zoo, sp.nan, sp.oo) else complex(math.nan)
+            if not (math.isfinite(number.real) and math.isfinite(number.imag)):
+                raise self.err("bad_value", f"parameter '{name}' is not a finite number (overflow, division by zero "
+                               "or log(0))", "check the formula", lines.get(name))
+            if number.imag != 0:
+                raise self.err("complex_value", f"parameter '{name}' is not a real number ({value})",
+                               "check signs under sqrt, log and fractional powers", lines.get(name))
+            numbers[sp.Symbol(name)] = sp.Float(number.real)
+        return numbers
 
     def expr(self, value, symbols, what, line, element=""):
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
@@ -277,20 +458,30 @@ class _Builder:
                            line, name) from None
         return built, tname
 
+    def check_value(self, p, expr, line, element):
+        """Refuse a constant value the parameter's declaration rules out (positive, nonzero, ...)."""
+        number = sp.sympify(expr).xreplace(self.numbers)
+        if not number.is_number:
+            return
+        value = float(number)
+        problem = p.problem(value)
+        if problem:
+            fix = ("the limit keeps checking and simulating quick (docs/netlist.md, Limits)" if "at most" in problem
+                   else "give a physical value; to leave a part out, join its neighbours directly")
+            raise self.err("bad_value", f"parameter '{p.name}' [{p.unit or '-'}] {problem}, got {value:g}", fix,
+                           line, element)
+
     def param_value(self, p, value, symbols, line, element):
         what = f"parameter '{p.name}'"
-        if p.kind == "number":
-            expr = self.expr(value, symbols, what, line, element)
-            number = sp.sympify(expr).xreplace(self.numbers)
-            if p.positive and number.is_number and not float(number) > 0:
-                raise self.err("bad_value", f"{what} [{p.unit}] must be positive, got {float(number):g}",
-                               "give a positive value; to leave the part out, join its neighbours directly",
-                               line, element)
+        if p.kind in ("number", "time", "law"):
+            local = dict(symbols)
+            if p.kind != "number":
+                local["t"] = T
+            if p.kind == "law":
+                local[p.law_var] = _LAW_VARS[p.law_var]
+            expr = self.expr(value, local, what, line, element)
+            self.check_value(p, expr, line, element)
             return expr
-        if p.kind == "time":
-            return self.expr(value, {**symbols, "t": T}, what, line, element)
-        if p.kind == "law":
-            return self.expr(value, {**symbols, "t": T, p.law_var: _LAW_VARS[p.law_var]}, what, line, element)
         if p.kind == "choice":
             if value not in p.choices:
                 raise self.err("bad_value", f"{what} must be one of {', '.join(p.choices)}, got {value!r}",
@@ -305,11 +496,21 @@ class _Builder:
                 raise self.err("bad_value", f"{what} must be a list of port names", line=line, element=element)
             return list(value)
         if p.kind == "numbers":
-            if not isinstance(value, list):
-                raise self.err("bad_value", f"{what} must be a list of numbers", line=line, element=element)
-            return [float(self.expr(v, symbols, what, line, element)) for v in value]
+            if not isinstance(value, list) or len(value) > MAX_LIST:
+                raise self.err("bad_value", f"{what} must be a list of at most {MAX_LIST} numbers",
+                               line=line, element=element)
+            out = []
+            for v in value:
+                expr = self.expr(v, symbols, what, line, element)
+                number = sp.sympify(expr).xreplace(self.numbers)
+                if not number.is_number:
+                    raise self.err("not_numeric", f"{what}: {v!r} is not a constant", line=line, element=element)
+                self.check_value(p, number, line, element)
+                out.append(float(number))
+            return out
         if p.kind == "matrix":
-            if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
+            if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value) \
+                    or len(value) * len(value[0]) > MAX_LIST:
                 raise self.err("bad_value", f"{what} must be a list of rows", line=line, element=element)
             if len({len(r) for r in value}) != 1:
                 raise self.err("bad_value", f"{what}: all rows must have the same length", line=line, element=element)
@@ -360,22 +561,5 @@ class _Builder:
     def simulate(self, raw) -> dict:
         if not isinstance(raw, dict):
             raise self.err("bad_value", "'simulate' must be a mapping", line=getattr(raw, "line", None))
-        out = {}
-        for key, value in raw.items():
-            if key not in _SIM_KEYS:
-                raise self.err("unknown_key", f"unknown simulate option {key!r}",
-                               f"allowed: {', '.join(_SIM_KEYS)}", raw.lines.get(key))
-            typ = _SIM_KEYS[key]
-            if typ is float:
-                if isinstance(value, bool) or not isinstance(value, (int, float)) or value <= 0:
-                    raise self.err("not_numeric", f"simulate.{key} must be a positive number, got {value!r}",
-                                   line=raw.lines.get(key))
-                out[key] = float(value)
-            else:
-                out[key] = str(value)
-        if "solver" in out:
-            from .simulate import SOLVERS
-            if out["solver"] != "auto" and out["solver"] not in SOLVERS:
-                raise self.err("unknown_solver", f"unknown solver {out['solver']!r}",
-                               f"use auto or one of {', '.join(SOLVERS)}", raw.lines.get("solver"))
-        return out
+        return validate_simulate_options({k: (math.nan if v is None else v) for k, v in raw.items()},
+                                         self.file, raw.lines)

@@ -1,0 +1,338 @@
+"""Hostile and malformed netlists: each is refused in one line naming file:line (and element).
+
+One test class per kind of input (issues 8 §3 and 9 §2, §4): YAML numbers, the function
+allow-list, parameter cycles and reserved names, degenerate values, size limits, loader values and
+simulate options.  Expected values come from the netlist reference (docs/netlist.md) and from
+independent float arithmetic, never from the loader itself.
+"""
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from multipole import netlist
+from multipole.cli import main
+from multipole.errors import NetlistError
+from multipole.expressions import FUNCTIONS, parse_expression
+from multipole.netlist import load, loads
+
+ROOT = Path(__file__).resolve().parents[1]
+
+BASE = """\
+name: probe
+parameters: PARAMS
+elements:
+  src: {type: torque_source, value: 1}
+  body: {type: inertia, J: JVAL}
+  EXTRA
+connections:
+  - [src.p, body.a]
+simulate: SIM
+"""
+#: line numbers in BASE
+PARAM_LINE, BODY_LINE, EXTRA_LINE, SIM_LINE = 2, 5, 6, 9
+
+
+def netlist_text(params="{ja: 0.5}", j="ja", sim="{t_end: 1.0}", extra="") -> str:
+    return BASE.replace("PARAMS", params).replace("JVAL", j).replace("SIM", sim).replace("EXTRA", extra)
+
+
+def refused(text: str, code: str, line: int | None, element: str = "", overrides=None) -> NetlistError:
+    """Load ``text`` and check the error: its code, one line, ``f.yaml:line`` and the element."""
+    with pytest.raises(NetlistError) as exc:
+        loads(text, "f.yaml", overrides)
+    err = exc.value
+    assert err.code == code, str(err)
+    assert "\n" not in str(err)
+    if line is not None:
+        assert err.where.startswith(f"f.yaml:{line}"), str(err)
+    if element:
+        assert f"element '{element}'" in err.where, str(err)
+    return err
+
+
+# -- 1. YAML numbers as engineers write them ------------------------------------------------------
+
+class TestYamlNumbers:
+    @pytest.mark.parametrize("text, value", [("1e-3", 1e-3), ("1e3", 1e3), ("1.0e9", 1.0e9), ("-2E+5", -2e5),
+                                             (".5e-2", 0.005), ("+3E2", 300.0)])
+    def test_exponent_forms_are_numbers_everywhere(self, text, value):
+        sim_value = abs(value)
+        scene = loads(netlist_text(params=f"{{ja: 0.5, pa: {text}}}",
+                                   sim=f"{{t_end: {sim_value if value < 0 else text}, rtol: 1e-6}}",
+                                   extra=f"g: {{type: gear_train, r1: [{'1e-2' if value < 0 else text}], r2: [2e-2]}}"),
+                      "f.yaml")
+        assert scene.simulate["t_end"] == pytest.approx(sim_value, rel=1e-15)
+        assert scene.simulate["rtol"] == pytest.approx(1e-6, rel=1e-15)
+        assert float(scene.network.params["pa"]) == pytest.approx(value, rel=1e-15)
+
+    def test_list_values_and_element_values(self):
+        scene = loads(netlist_text(j="2.5e-3", extra="g: {type: gear_train, r1: [1e-2], r2: [3e-2]}"), "f.yaml")
+        ratio = scene.network.children["g"].quantities["ratio"].build(None)
+        assert float(ratio) == pytest.approx(-3.0, rel=1e-12)      # -r2/r1 of one external stage
+
+    def test_plain_safe_load_is_unchanged(self):
+        # the resolver is added to the project's loader only, never to yaml.SafeLoader
+        assert yaml.safe_load("a: 1e-3") == {"a": "1e-3"}
+
+    def test_words_stay_words(self):
+        scene = loads(netlist_text().replace("name: probe", "name: e3"), "f.yaml")
+        assert scene.name == "e3"
+
+
+# -- 2. the expression allow-list ----------------------------------------------------------------
+
+class TestFunctionAllowList:
+    def documented(self) -> list[str]:
+        text = (ROOT / "docs" / "netlist.md").read_text(encoding="utf-8")
+        match = re.search(r"these functions: `([^`]*)`", text)
+        assert match, "docs/netlist.md lists the functions after 'these functions:'"
+        return match.group(1).split()
+
+    def test_documented_functions_are_exactly_the_allowed_ones(self):
+        assert sorted(self.documented()) == sorted(FUNCTIONS)
+
+    @pytest.mark.parametrize("call", [
+        "sin(t)", "cos(t)", "tan(t)", "asin(t/10)", "acos(t/10)", "atan(t)", "atan2(t, 1)", "sinh(t)", "cosh(t)",
+        "tanh(t)", "exp(t)", "log(1 + t)", "sqrt(1 + t)", "abs(t)", "sign(t)", "min(t, 1)", "max(t, 1, 2)",
+        "step(t)", "step(t, 0.1)", "ramp(t, 0.1)", "pulse(t, 0.1, 0.2)", "interp(t, [0, 1], [0, 2])"])
+    def test_every_documented_function_is_accepted(self, call):
+        assert call.split("(")[0] in self.documented()
+        expr = parse_expression(call, {"t": netlist.T})
+        assert expr.free_symbols == {netlist.T}
+
+    @pytest.mark.parametrize("text, code", [
+        ("gamma(t)", "unsafe_expression"), ("factorial(5)", "unsafe_expression"),
+        ("Lambda(t, t)", "unsafe_expression"), ("Function(t)", "unsafe_expression"),
+        ("Symbol(t)", "unsafe_expression"), ("__import__('os')", "unsafe_expression"),
+        ("eval(1)", "unsafe_expression"), ("exec(1)", "unsafe_expression"), ("getattr(t, 1)", "unsafe_expression"),
+        ("Integral(t, t)", "unsafe_expression"), ("S(1)", "unsafe_expression"), ("N(t)", "unsafe_expression"),
+        ("(lambda: 1)()", "unsafe_expression"), ("lambda: 1", "unsafe_expression"),
+        ("sin.__class__", "unsafe_expression"),
+        # E is not a constant of the language (write exp(1)); nor are I, oo, zoo, nan, S, N
+        ("E", "unknown_name"), ("I", "unknown_name"), ("oo", "unknown_name"), ("zoo", "unknown_name"),
+        ("nan", "unknown_name"), ("S", "unknown_name"), ("N", "unknown_name"), ("gamma", "unknown_name"),
+        ("eval", "unknown_name"), ("lambda", "bad_expression")])
+    def test_other_names_are_refused(self, text, code):
+        with pytest.raises(NetlistError) as exc:
+            parse_expression(text, {"t": netlist.T}, "f.yaml:3")
+        assert exc.value.code == code
+        assert exc.value.where == "f.yaml:3"
+
+    def test_refused_in_a_netlist_with_file_line_and_element(self):
+        refused(netlist_text(extra="m: {type: torque_source, value: 'gamma(t)'}"), "unsafe_expression",
+                EXTRA_LINE, "m")
+
+
+# -- 3. parameter cycles and reserved names ------------------------------------------------------
+
+class TestParameterNames:
+    @pytest.mark.parametrize("params, first", [("{a: b, b: a}", "b"), ("\n  x: 1\n  a: c\n  b: a\n  c: b", "a")])
+    def test_cycle_is_one_line(self, params, first):
+        err = refused(netlist_text(params=params, j="x" if "x" in params else "a"), "parameter_cycle", None)
+        assert f"parameter '{first}'" in err.message and "->" in err.message
+        assert re.match(r"f\.yaml:\d+$", err.where)
+
+    def test_cycle_through_set(self):
+        text = netlist_text(params="{a: 1.0, b: 2.0}", j="a")
+        refused(text, "parameter_cycle", PARAM_LINE, overrides={"a": "b", "b": "a"})
+
+    @pytest.mark.parametrize("command", [["check"], ["simulate", "--quiet"], ["equations"]])
+    def test_cycle_on_the_command_line(self, tmp_path, capsys, command):
+        path = tmp_path / "cycle.yaml"
+        path.write_text(netlist_text(params="{a: 1.0, b: 2.0}", j="a"), encoding="utf-8")
+        assert main([command[0], str(path), "--set", "a=b", "--set", "b=a", *command[1:]]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and err.startswith("error[parameter_cycle]")
+        assert f"{path}:{PARAM_LINE}" in err
+
+    @pytest.mark.parametrize("name", ["t", "f", "q", "p", "pi", "sin", "step", "interp", "min", "q1", "q12",
+                                      "lambda", "None"])
+    def test_reserved_names_are_refused(self, name):
+        err = refused(netlist_text(params=f"\n  ja: 0.5\n  {name}: 2.0", sim="{t_end: 1.0}"), "reserved_name",
+                      PARAM_LINE + 2)
+        assert repr(name) in err.message
+
+    @pytest.mark.parametrize("name", ["t0", "q0", "f_c", "p_max", "E", "I", "gamma"])
+    def test_ordinary_names_are_accepted(self, name):
+        scene = loads(netlist_text(params=f"{{{name}: 0.25}}", j=name), "f.yaml")
+        assert float(scene.network.params[name]) == 0.25
+
+
+# -- 4. degenerate values from the catalogue's declarations --------------------------------------
+
+class TestDegenerateValues:
+    @pytest.mark.parametrize("extra, param", [
+        ("g: {type: ideal_gear, i: 0}", "i"),
+        ("g: {type: ideal_gear, i: 'ja - 0.5'}", "i"),
+        ("g: {type: TF, ratio: 0}", "ratio"),
+        ("g: {type: TF, ratio: '0*q'}", "ratio"),
+        ("g: {type: GY, r: 0}", "r"),
+        ("g: {type: dc_motor, k: 0.1, R: 1, L: 1e-3, J: -1e-4}", "J"),
+        ("g: {type: dc_motor, k: 0.1, R: 1, L: -1e-3, J: 1e-4}", "L"),
+        ("g: {type: dc_motor, k: 0, R: 1, L: 1e-3, J: 1e-4}", "k"),
+        ("g: {type: mass, m: -1}", "m"),
+        ("g: {type: spring, c: -1e3}", "c"),
+        ("g: {type: spur_stage, r1: 0.01, r2: 0.02, level: elastic, c: -1e8}", "c"),
+        ("g: {type: spur_stage, r1: '-0.0', r2: 0.02}", "r1"),
+        ("g: {type: gear_train, r1: ['-0.0'], r2: [0.02]}", "r1"),
+        ("g: {type: piezo_element, k_P: 1e-9, delta_P: -1e-8, C_P: 1e-6}", "delta_P"),
+        ("g: {type: planetary, z_sun: -20, z_ring: 60}", "z_sun"),
+    ])
+    def test_refused(self, extra, param):
+        err = refused(netlist_text(extra=extra), "bad_value", EXTRA_LINE, "g")
+        assert f"parameter '{param}'" in err.message
+
+    def test_literal_zero_still_leaves_a_part_out(self):
+        loads(netlist_text(extra="g: {type: dc_motor, k: 0.1, R: 1, L: 0, J: 0}"), "f.yaml")
+
+
+# -- 5. size limits ------------------------------------------------------------------------------
+
+class TestLimits:
+    def test_file_size(self, tmp_path):
+        path = tmp_path / "big.yaml"
+        path.write_bytes(b"#" * netlist.MAX_FILE_BYTES + b"\n")
+        with pytest.raises(NetlistError) as exc:
+            load(path)
+        assert exc.value.code == "too_large" and exc.value.where == str(path)
+
+    @pytest.mark.skipif(not Path("/dev/zero").exists(), reason="no /dev/zero")
+    def test_endless_file_is_not_read_whole(self):
+        with pytest.raises(NetlistError) as exc:
+            load("/dev/zero")
+        assert exc.value.code == "too_large"
+
+    def test_number_of_elements(self):
+        n = netlist.MAX_ELEMENTS + 1
+        text = "elements:\n" + "".join(f"  g{k}: {{type: ground}}\n" for k in range(n))
+        err = refused(text, "too_large", 1)
+        assert str(n) in err.message
+
+    def test_stack_count(self):
+        from elements.piezo import MAX_STACK
+        err = refused(netlist_text(extra=f"s: {{type: piezo_stack, n: {MAX_STACK + 1}, k_P: 1e-9, delta_P: 1e-8, "
+                                         "C_P: 1e-6}"), "bad_value", EXTRA_LINE, "s")
+        assert "parameter 'n'" in err.message and f"at most {MAX_STACK}" in err.message
+
+    @staticmethod
+    def chain(p0: float, count: int = 38) -> str:
+        lines = [f"  p0: {p0!r}"] + [f"  p{i}: p{i - 1}*p{i - 1} + p{i - 1}" for i in range(1, count + 1)]
+        return "\n" + "\n".join(lines)
+
+    def test_chained_parameters_are_numbers_not_expansions(self):
+        value = 1e-3
+        for _ in range(38):                    # independent float arithmetic
+            value = value * value + value
+        scene = loads(netlist_text(params=self.chain(1e-3), j="p38"), "f.yaml")
+        flat_value = scene.network.params["p38"]
+        assert flat_value.free_symbols == {netlist.sp.Symbol("p37")}   # kept as a formula, not expanded
+        from multipole.network import flatten
+        values = {s.name: v for s, v in flatten(scene.network).param_values().items()}
+        assert values["p38"] == pytest.approx(value, rel=1e-12)
+
+    def test_chained_parameters_that_overflow(self):
+        value, first = 1.0001, None
+        for i in range(1, 39):
+            value = value * value + value
+            if math.isinf(value):
+                first = i
+                break
+        err = refused(netlist_text(params=self.chain(1.0001), j="p0"), "bad_value", PARAM_LINE + 1 + first)
+        assert f"parameter 'p{first}'" in err.message
+
+    def test_billion_laughs(self):
+        text = "a: &a [x, x, x, x, x, x, x, x, x, x]\n"
+        for k, name in enumerate("bcdefghi"):
+            prev = "abcdefghi"[k]
+            text += f"{name}: &{name} [" + ", ".join([f"*{prev}"] * 10) + "]\n"
+        err = refused(text, "too_large", None)
+        assert re.match(r"f\.yaml:\d+$", err.where)
+
+    def test_recursive_alias(self):
+        refused("a: &a [1, *a]\n", "yaml_syntax", 1)
+
+    def test_deep_nesting(self):
+        refused("a: " + "[" * 5000, "too_large", None)
+
+
+# -- 6. loader values ----------------------------------------------------------------------------
+
+class TestLoaderValues:
+    @pytest.mark.parametrize("tag", ["!!timestamp x", "!!int x", "!!float x", "!!bool x"])
+    def test_tags_with_bad_values(self, tag):
+        refused(netlist_text(params=f"{{ja: 0.5, a: {tag}}}"), "yaml_value", PARAM_LINE)
+
+    def test_integer_with_thousands_of_digits(self):
+        refused(netlist_text(params="{ja: " + "9" * 5000 + "}"), "too_large", PARAM_LINE)
+
+    def test_integer_with_thousands_of_digits_in_a_formula(self):
+        with pytest.raises(NetlistError) as exc:
+            parse_expression("1" * 400, {}, "f.yaml:2")
+        assert exc.value.code == "bad_expression"
+
+    def test_not_utf8(self, tmp_path):
+        path = tmp_path / "latin1.yaml"
+        path.write_bytes(netlist_text().replace("name: probe", "name: probe\ndescription: caf\xe9").encode("latin-1"))
+        with pytest.raises(NetlistError) as exc:
+            load(path)
+        assert exc.value.code == "not_utf8" and exc.value.where == f"{path}:2"
+
+    @pytest.mark.parametrize("formula", ["sqrt(-1)", "log(-2)", "(-8)**(1/3)", "acos(2)", "2*sqrt(-1)*t"])
+    def test_complex_constants(self, formula):
+        refused(netlist_text(extra=f"m: {{type: torque_source, value: '{formula}'}}"), "complex_value", EXTRA_LINE, "m")
+
+    @pytest.mark.parametrize("params", ["{b: -4.0, ja: 'sqrt(b)'}", "{b: -8.0, ja: 'b**(1/3)'}"])
+    def test_complex_parameter_values(self, params):
+        err = refused(netlist_text(params=params), "complex_value", PARAM_LINE)
+        assert "parameter 'ja'" in err.message
+
+    def test_parameter_that_divides_by_zero(self):
+        refused(netlist_text(params="{b: 0, ja: '1/b'}"), "bad_value", PARAM_LINE)
+
+    def test_list_parameters_use_scene_parameters(self):
+        scene = loads(netlist_text(params="{ja: 0.5, ra: 0.01}", extra="g: {type: gear_train, r1: [ra], r2: [0.04]}"),
+                      "f.yaml", {"ra": "0.02"})
+        assert float(scene.network.children["g"].quantities["ratio"].build(None)) == pytest.approx(-2.0, rel=1e-12)
+
+    def test_list_parameters_with_unknown_names(self):
+        refused(netlist_text(extra="g: {type: gear_train, r1: [rb], r2: [0.04]}"), "unknown_name", EXTRA_LINE, "g")
+
+    @pytest.mark.parametrize("name", ["a$b", "x`rm`", "$\\frac{1}{0}$", "a\nb", "[1]", "''"])
+    def test_junk_in_the_scene_name(self, name):
+        text = netlist_text().replace("name: probe", f"name: {name!r}" if "\n" not in name else 'name: "a\\nb"')
+        refused(text, "bad_name", 1)
+
+
+# -- 7. simulate options -------------------------------------------------------------------------
+
+class TestSimulateOptions:
+    @pytest.mark.parametrize("sim, code", [
+        ("{t_end: .nan}", "not_numeric"), ("{t_end: .inf}", "not_numeric"), ("{t_end: 1, rtol: .nan}", "not_numeric"),
+        ("{t_end: 1, atol: .inf}", "not_numeric"), ("{t_end: 1, dt_out: .inf}", "not_numeric"),
+        ("{t_end: 1, atol: -1e-6}", "not_numeric"), ("{t_end: 1, dt_out: -1e-3}", "not_numeric"),
+        ("{t_end: 0}", "not_numeric"), ("{t_end: '1'}", "not_numeric"), ("{t_end: true}", "not_numeric"),
+        ("{t_end: 1, max_step: 1e-300}", "bad_option"), ("{t_end: 1, dt_out: 1e-320}", "bad_option"),
+        ("{t_end: 1, rtol: 1e-16}", "bad_option"), ("{t_end: 1, rtol: 1}", "bad_option"),
+        ("{t_end: 1, dt_out: 2}", "bad_option"), ("{t_end: 1.0e+9, dt_out: 1.0e-6}", "bad_option"),
+        ("{t_end: 1, solver: [RK45]}", "bad_option"), ("{t_end: 1, solver: Euler}", "unknown_solver"),
+    ])
+    def test_refused_at_load(self, sim, code):
+        refused(netlist_text(sim=sim), code, SIM_LINE)
+
+    def test_accepted(self):
+        scene = loads(netlist_text(sim="{t_end: 2, dt_out: 1e-3, rtol: 1e-14, atol: 1e-12, max_step: 1e-2}"), "f.yaml")
+        assert scene.simulate == {"t_end": 2.0, "dt_out": 1e-3, "rtol": 1e-14, "atol": 1e-12, "max_step": 1e-2}
+
+    def test_the_same_validator_serves_command_line_values(self):
+        check = netlist.validate_simulate_options
+        assert check({"t_end": 0.5, "dt_out": None, "rtol": 1e-6}) == {"t_end": 0.5, "rtol": 1e-6}
+        for options, code in [({"t_end": 1.0, "dt_out": -1.0}, "not_numeric"), ({"rtol": float("nan")}, "not_numeric"),
+                              ({"t_end": 1.0, "dt_out": 5.0}, "bad_option")]:
+            with pytest.raises(NetlistError) as exc:
+                check(options, "cli.yaml")
+            assert exc.value.code == code and exc.value.where == "cli.yaml"

@@ -309,37 +309,53 @@ def evaluate_blocks(eq: Equations, t: float, x, wanted) -> dict:
 
     Only the blocks ``wanted`` depends on are evaluated, in order: explicit and symbolic linear
     blocks by substitution, numeric linear ones by a dense solve, nonlinear ones by Newton's method
-    (scipy) started from zero.  Raises ``ArithmeticError`` if a value is not a finite real number.
+    (scipy, from a few starts).  Raises ``ArithmeticError`` if a value is not a finite real number
+    (:class:`LoopFailure` if a nonlinear loop has no unique solution there).
     """
+    values, mags = block_values(eq, t, x, wanted, magnitudes=True)
+    return {v: (values[v], mags[v]) for v in wanted}
+
+
+def block_values(eq: Equations, t: float, x, wanted=None, magnitudes=False):
+    """``(values, magnitudes)``: symbol -> float for the parameters, ``t``, the states, the inputs
+    and every variable the blocks compute (only those ``wanted`` depends on, if given); the
+    magnitudes (see :func:`evaluate_blocks`) only if asked for, else None."""
     values = {p: float(v) for p, v in eq.params.items()}
     values[T] = float(t)
     values.update({s.symbol: float(v) for s, v in zip(eq.states, x)})
     for u, e in eq.inputs.items():
         values[u] = _real(sp.sympify(e).xreplace(values))
-    mags = {k: abs(v) for k, v in values.items()}
-    needed = set(wanted)
-    todo = []
-    for b in reversed(eq.blocks):
-        if needed & set(b.variables):
-            todo.append(b)
-            needed |= set().union(*(sp.sympify(r).free_symbols for r in b.residuals))
-    for b in reversed(todo):
+    mags = {k: abs(v) for k, v in values.items()} if magnitudes else None
+    if wanted is None:
+        todo = list(eq.blocks)
+    else:
+        needed = set(wanted)
+        todo = []
+        for b in reversed(eq.blocks):
+            if needed & set(b.variables):
+                todo.append(b)
+                needed |= set().union(*(sp.sympify(r).free_symbols for r in b.residuals))
+        todo.reverse()
+    for b in todo:
         if b.solution is not None:
             for v, sol in zip(b.variables, b.solution):
                 values[v] = _real(sp.sympify(sol).xreplace(values))
-                mags[v] = _magnitude(sp.sympify(sol), mags)
+                if magnitudes:
+                    mags[v] = _magnitude(sp.sympify(sol), mags)
         elif b.kind == "linear":
             A = np.array(b.matrix.xreplace(values).evalf(), dtype=float)
             rhs = np.array(b.rhs.xreplace(values).evalf(), dtype=float).ravel()
             z = np.linalg.solve(A, rhs)
-            size = np.abs(np.linalg.inv(A)) @ (np.abs(A) @ np.abs(z) + np.abs(rhs))
             values.update(zip(b.variables, (float(v) for v in z)))
-            mags.update(zip(b.variables, (float(v) for v in size)))
+            if magnitudes:
+                size = np.abs(np.linalg.inv(A)) @ (np.abs(A) @ np.abs(z) + np.abs(rhs))
+                mags.update(zip(b.variables, (float(v) for v in size)))
         else:
             z = _newton_block(b, values)
             values.update(zip(b.variables, (float(v) for v in z)))
-            mags.update(zip(b.variables, (abs(float(v)) for v in z)))
-    return {v: (values[v], mags[v]) for v in wanted}
+            if magnitudes:
+                mags.update(zip(b.variables, (abs(float(v)) for v in z)))
+    return values, mags
 
 
 class LoopFailure(ArithmeticError):

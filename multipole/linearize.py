@@ -1,6 +1,9 @@
 """Linearisation (DESIGN §3: ``Equations ──linearize──▶ python-control StateSpace``).
 
-The explicit ODE is linearised symbolically about the initial state and the inputs at ``t = 0``:
+The explicit ODE is linearised about the initial state and the inputs at ``t = 0`` by implicit
+differentiation of the evaluation order at that point (:func:`numeric_jacobians`), so every
+well-posed scene linearises, with or without closed-form loops (``method="symbolic"``
+differentiates the substituted ODE instead where every loop has a closed form):
 ``A = ∂f/∂x``, ``B = ∂f/∂u``, ``C = ∂y/∂x``, ``D = ∂y/∂u`` with the scene's sources as inputs ``u``
 and its outputs as ``y``.  The result is a :class:`control.StateSpace` with named signals, plus the
 eigenvalues with their natural frequencies [Hz] and damping ratios.
@@ -12,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .equations import Equations
+from .equations import Equations, block_values
 from .errors import IllPosedError, MultipoleError, RunError
 from .primitives import T
 
@@ -58,11 +61,23 @@ class Linearization:
         return "\n".join(lines)
 
 
-def linearize(eq: Equations, outputs) -> Linearization:
-    """Linearise ``eq`` about its initial state and the inputs at t = 0."""
-    if any(b.solution is None for b in eq.blocks):
-        raise IllPosedError("not_symbolic", "linearize needs every algebraic loop solved symbolically",
-                            "reduce the model or use the Jacobian of the compiled model (Model.jac)")
+def linearize(eq: Equations, outputs, method: str = "numeric") -> Linearization:
+    """Linearise ``eq`` about its initial state and the inputs at t = 0.
+
+    ``method``: ``numeric`` (default) differentiates the evaluation order at the operating point
+    (see :func:`numeric_jacobians`): exact up to rounding and valid for every well-posed scene,
+    with or without closed-form loops; ``symbolic`` differentiates the ODE with every loop
+    substituted, which needs every algebraic loop in closed form (slower; the two agree to
+    rounding, which the tests check).
+    """
+    if method not in ("symbolic", "numeric"):
+        raise ValueError(f"method must be numeric or symbolic, not {method!r}")
+    if method == "symbolic" and any(b.solution is None for b in eq.blocks):
+        raise IllPosedError("not_symbolic", "symbolic linearisation needs every algebraic loop solved symbolically",
+                            "use method='numeric' (the default)")
+    if method == "numeric":
+        return Linearization(*numeric_jacobians(eq, outputs), [s.name for s in eq.states],
+                             [u.name for u in eq.inputs], list(outputs))
     xs = [s.symbol for s in eq.states]
     us = list(eq.inputs)
     f = sp.Matrix([eq.substituted(d, max_ops=10**9) for d in eq.derivatives])
@@ -79,6 +94,58 @@ def linearize(eq: Equations, outputs) -> Linearization:
 
     return Linearization(num(f, xs, len(xs)), num(f, us, len(xs)), num(y, xs, len(outputs)), num(y, us, len(outputs)),
                          [s.name for s in eq.states], [u.name for u in us], list(outputs))
+
+
+def numeric_jacobians(eq: Equations, outputs, t: float = 0.0, x=None):
+    """``(A, B, C, D)`` at time ``t`` and state ``x`` (default: the initial state) by implicit
+    differentiation of the evaluation order, exact up to rounding.
+
+    Every block computes its variables ``z`` from earlier ones ``w`` through residuals ``r(z, w) = 0``
+    (an explicit assignment, a linear loop or a nonlinear loop alike), so at the operating point
+    ``dz = −(∂r/∂z)⁻¹·(∂r/∂w)·dw``.  Carried through the blocks in order, starting from the states
+    and the inputs, this gives the derivatives of every ``d/dt x`` and every output with respect to
+    them — the Jacobian of the compiled model, for loops with and without closed form.  Input
+    derivatives that the resolution of derivative causality introduced are functions of time, not
+    inputs, as in the symbolic path.
+    """
+    xs = [s.symbol for s in eq.states]
+    us = list(eq.inputs)
+    n, m = len(xs), len(us)
+    x = eq.initial_values() if x is None else list(x)
+    values = {k: sp.Float(v) for k, v in block_values(eq, t, x)[0].items()}
+    grad = {sym: row for sym, row in zip(xs + us, np.eye(n + m))}
+
+    def d(expr, sym):
+        value = complex(sp.sympify(sp.diff(expr, sym).xreplace(values)).evalf())
+        if value.imag != 0 or not np.isfinite(value.real):
+            raise ArithmeticError(f"d({expr})/d({sym}) is not finite at the operating point")
+        return value.real
+
+    for b in eq.blocks:
+        index = {z: k for k, z in enumerate(b.variables)}
+        Jz = np.zeros((len(b.residuals), len(index)))
+        Jw = np.zeros((len(b.residuals), n + m))
+        for i, r in enumerate(b.residuals):
+            r = sp.sympify(r)
+            for sym in r.free_symbols:
+                if sym in index:
+                    Jz[i, index[sym]] = d(r, sym)
+                elif sym in grad and grad[sym].any():
+                    Jw[i] += d(r, sym) * grad[sym]
+        G = -np.linalg.solve(Jz, Jw)
+        grad.update(zip(b.variables, G))
+
+    def rows(exprs):
+        out = np.zeros((len(exprs), n + m))
+        for k, e in enumerate(exprs):
+            e = sp.sympify(e)
+            for sym in e.free_symbols:
+                if sym in grad:
+                    out[k] += d(e, sym) * grad[sym]
+        return out
+    F = rows(eq.derivatives)
+    Y = rows([eq.output(o) for o in outputs])
+    return F[:, :n], F[:, n:], Y[:, :n], Y[:, n:]
 
 
 def cmd_linearize(args) -> int:

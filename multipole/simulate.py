@@ -569,7 +569,8 @@ def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: floa
     time_only = np.array(getattr(model, "switch_time_only", [False] * model.n_switches), dtype=bool)
     watch = ~time_only                     # the switches checked after every step
     schedule, t_sides = time_switch_schedule(lambda tt: model.switches(tt, x), time_only,
-                                             getattr(model, "switch_rate", []), t_end, model.switch_text)
+                                             getattr(model, "switch_rate", []), t_end, model.switch_text,
+                                             getattr(model, "switch_roots", None))
     i_sched = 0
     while n and k_out < len(t_grid):
         while i_sched < len(schedule) and schedule[i_sched][0] <= t:     # a scheduled crossing
@@ -715,22 +716,32 @@ def _check_chattering(events):
                               f"(last: {text})", "regularise the law or check the model")
 
 
-def time_switch_schedule(g, time_only, rate, t_end, texts=None) -> tuple[list, np.ndarray]:
+def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> tuple[list, np.ndarray]:
     """The crossings of the switching functions that depend on time alone, found before the run.
 
     ``g(t)`` gives every switching function at time t [s] (the state does not matter for these);
     ``time_only[k]`` marks them and ``rate[k]`` is the fastest angular rate of a sine inside
-    function k [rad/s] (0: none, inf: unknown).  Each is sampled at ``t_end/TIME_SAMPLES`` or
-    ``SAMPLES_PER_HALF_PERIOD`` points per half period of that sine, whichever is finer, and every
-    sign change between samples is located by Brent's method (to 1e-14 s).  Returns
-    ``([(t, k, side after), ...] in time order, sides)``, ``sides[k]`` being the side (±1) of
-    function k at the start (its first non-zero sign).  Sampling stops after ``MAX_EVENTS + 1``
-    crossings (the run then stops as chattering)."""
-    time_only = np.asarray(time_only, dtype=bool)
+    function k [rad/s] (0: none, inf: unknown).  Where ``roots[k]`` lists its crossings
+    ``[(t, side after), ...]`` (a polynomial in t, :func:`multipole.codegen.time_switches`) those
+    are taken.  The others are sampled at ``t_end/TIME_SAMPLES`` or ``SAMPLES_PER_HALF_PERIOD``
+    points per half period of that sine, whichever is finer, and every sign change between samples
+    is located by Brent's method (to 1e-14 s).  Returns ``([(t, k, side after), ...] in time order,
+    sides)``, ``sides[k]`` being the side (±1) of function k at the start (its first non-zero sign).
+    Sampling stops after ``MAX_EVENTS + 1`` crossings (the run then stops as chattering)."""
+    time_only = np.array(time_only, dtype=bool)       # a copy: cleared below where roots are known
     sides = np.ones(len(time_only))
+    known: list = []
+    for k in np.nonzero(time_only)[0]:
+        if roots is None or roots[k] is None:
+            continue
+        inside = [(float(t), int(k), float(side)) for t, side in roots[k] if 0 < t < t_end]
+        first = inside[0][0] if inside else t_end      # the sign is constant before the first crossing
+        sides[k] = np.sign(np.asarray(g(0.5 * first), dtype=float)[k]) or 1.0
+        known += inside
+        time_only[k] = False                           # nothing to sample
     ks = np.nonzero(time_only)[0]
     if not ks.size:
-        return [], sides
+        return sorted(known), sides
     fastest = max(float(rate[k]) for k in ks) if len(rate) else 0.0
     h = t_end / (TIME_SAMPLES_UNKNOWN_RATE if np.isinf(fastest) else TIME_SAMPLES)
     if 0 < fastest < np.inf:
@@ -767,8 +778,7 @@ def time_switch_schedule(g, time_only, rate, t_end, texts=None) -> tuple[list, n
             last[j], t_last[j] = seq[-1], t_seq[-1]
         if len(out) > MAX_EVENTS:
             break
-    out.sort()
-    return out, sides
+    return sorted(out + known), sides
 
 
 def _first_crossing(model, dense, g_sign, watch, t0, t1):

@@ -222,15 +222,17 @@ def switch_list(writer) -> list:
 _PERIODIC = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
 
 
-def time_switches(writer, sw) -> tuple[list, list]:
-    """``(time_only, rate)`` for the switching functions ``sw``: whether each depends on time alone
-    (no state, through the intermediate variables and inputs it is computed from), and for those
+def time_switches(writer, sw) -> tuple[list, list, list]:
+    """``(time_only, rate, roots)`` for the switching functions ``sw``: whether each depends on time
+    alone (no state, through the intermediate variables and inputs it is computed from); for those
     the fastest angular rate of a sine/cosine/tangent of time inside it [rad/s] (0.0 if there is
-    none, ``inf`` if an argument is not linear in t).  The driver finds the crossings of these
+    none, ``inf`` if an argument is not linear in t), and, where the function is a polynomial in t
+    with simple real roots (``t - t1`` of a step, the edges of a pulse, a table's breakpoints), its
+    crossings ``[(t, side after), ...]``, else None.  The driver finds the crossings of these
     functions before integrating (:func:`multipole.simulate.time_switch_schedule`)."""
     states = set(writer.states)
     inputs = {u: sp.sympify(e) for u, e in writer.eq.inputs.items()}
-    time_only, rate = [], []
+    time_only, rate, roots = [], [], []
     for g in sw:
         units = _closure(writer.units, g.free_symbols)
         syms = set(g.free_symbols).union(*(u.deps for u in units))
@@ -238,6 +240,7 @@ def time_switches(writer, sw) -> tuple[list, list]:
         if syms & states or any(u.kind != "assign" for u in units):
             time_only.append(False)
             rate.append(0.0)
+            roots.append(None)
             continue
         subs = dict(inputs)
         subs.update({v: e for u in units for v, e in zip(u.variables, u.exprs)})
@@ -251,14 +254,43 @@ def time_switches(writer, sw) -> tuple[list, list]:
                 fastest = max(fastest, abs(float(slope)) if not slope.free_symbols else math.inf)
         time_only.append(True)
         rate.append(fastest)
-    return time_only, rate
+        roots.append(_polynomial_crossings(expr))
+    return time_only, rate, roots
+
+
+def _polynomial_crossings(expr) -> list | None:
+    """``[(t, side after), ...]``: the simple real roots of ``expr`` if it is a polynomial in t, else
+    None (also where a root is multiple: the sign may not change there)."""
+    if not expr.is_polynomial(T):
+        return None
+    try:
+        coeffs = [float(c) for c in sp.Poly(expr, T).all_coeffs()]
+    except (TypeError, ValueError, sp.PolynomialError):
+        return None
+    if len(coeffs) < 2 or not all(math.isfinite(c) for c in coeffs) or coeffs[0] == 0.0:
+        return None
+    if len(coeffs) == 2:
+        a, b = coeffs
+        return [(-b / a, math.copysign(1.0, a))] if math.isfinite(-b / a) else None
+    out = []
+    slope = np.polyder(coeffs)
+    for r in np.roots(coeffs):
+        if abs(r.imag) > 1e-12 * max(1.0, abs(r.real)):
+            continue
+        s = float(np.polyval(slope, r.real))
+        if abs(s) <= 1e-9 * max(abs(c) for c in coeffs):
+            return None
+        out.append((float(r.real), math.copysign(1.0, s)))
+    return sorted(out)
 
 
 def time_switch_lines(writer, sw) -> list:
-    """``SWITCH_TIME_ONLY`` and ``SWITCH_RATE`` (see :func:`time_switches`) as generated code."""
-    time_only, rate = time_switches(writer, sw)
+    """``SWITCH_TIME_ONLY``, ``SWITCH_RATE`` and ``SWITCH_ROOTS`` (see :func:`time_switches`) as
+    generated code."""
+    time_only, rate, roots = time_switches(writer, sw)
     return [f"SWITCH_TIME_ONLY = {time_only!r}",
-            "SWITCH_RATE = [" + ", ".join("math.inf" if math.isinf(r) else repr(float(r)) for r in rate) + "]"]
+            "SWITCH_RATE = [" + ", ".join("math.inf" if math.isinf(r) else repr(float(r)) for r in rate) + "]",
+            f"SWITCH_ROOTS = {roots!r}"]
 
 
 class Model:
@@ -298,6 +330,7 @@ class Model:
         #: per switching function: depends on time alone, and its fastest sine rate [rad/s]
         self.switch_time_only = list(namespace.get("SWITCH_TIME_ONLY", [False] * self.n_switches))
         self.switch_rate = list(namespace.get("SWITCH_RATE", [0.0] * self.n_switches))
+        self.switch_roots = list(namespace.get("SWITCH_ROOTS", [None] * self.n_switches))
         self.values = namespace["values"]
         self.value_names = namespace["VALUE_NAMES"]
 

@@ -223,3 +223,28 @@ def test_two_contacts_inside_one_step_in_order(backend):
     assert len(order) == 4 and order[0] == order[3] and order[1] == order[2] and order[0] != order[1]
     assert np.allclose([t for t, _ in res.events], [t1, t2, t3, t4], rtol=0, atol=1e-9)
     assert np.allclose(res["body.v"][res.t > t4], -v0, rtol=1e-8)
+
+
+NOTCH = """
+name: notch
+parameters: {m: 2.0, F: 3.0, tc: 0.5, half: 1.0e-4}
+elements:
+  push: {type: force_source, value: "F*step((t - tc)**2 - half**2)"}
+  body: {type: mass, m: m}
+connections:
+  - [push.p, body.a]
+outputs: [body.v]
+simulate: {t_end: 1.0, dt_out: 0.05, rtol: 1.0e-9, atol: 1.0e-12}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_polynomial_time_switch_has_its_roots_as_events(backend):
+    """The force is off for |t - tc| < half: two crossings 2e-4 s apart, closer than the samples of
+    a general time function; as roots of a polynomial in t they are exact.  v = F/m·(t - time off)."""
+    m, F, tc, half = 2.0, 3.0, 0.5, 1.0e-4
+    res = run(NOTCH, backend=backend)
+    assert res.stats["backend"] == backend
+    assert np.allclose([t for t, _ in res.events], [tc - half, tc + half], rtol=0, atol=1e-13)
+    off = np.clip(res.t - (tc - half), 0.0, 2 * half)
+    assert np.allclose(res["body.v"], F / m * (res.t - off), rtol=1e-9, atol=1e-15)

@@ -515,9 +515,12 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
     grid = output_grid(t_end, dt_out, 1 + n + len(outputs))
     rtol = max(rtol, 100 * np.finfo(float).eps)
     work = _Work(n, len(switch_text), module.N_WORK, grid, x0, t_end, rtol, atol, max_step)
-    if any(module.SWITCH_TIME_ONLY):
-        work.schedule(module.SWITCH_TIME_ONLY, *time_switch_schedule(
-            _switches_of_time(module, x0), module.SWITCH_TIME_ONLY, module.SWITCH_RATE, t_end, switch_text))
+    if any(module.SWITCH_TIME_ONLY):       # found once per horizon (sampling takes milliseconds)
+        schedules = equations.__dict__.setdefault("_numba_schedules", {})
+        if t_end not in schedules:
+            schedules[t_end] = time_switch_schedule(_switches_of_time(module, x0), module.SWITCH_TIME_ONLY,
+                                                    module.SWITCH_RATE, t_end, switch_text, module.SWITCH_ROOTS)
+        work.schedule(module.SWITCH_TIME_ONLY, *schedules[t_end])
     funcs = _cfuncs(module) + (method == "Radau",)
     if progress is None:
         progress = sys.stderr.isatty()

@@ -183,6 +183,6 @@ register(ElementType(
     lambda n, k_P, delta_P, C_P, m, R: piezo_stack(n, k_P, delta_P, C_P, m, R),
     "piezo stack translator (Weber Bild 38): n piezo_elements, mechanically in series, "
     "electrically in parallel",
-    _PORTS, [Param("n", "-", f"number of elements (whole number, at most {MAX_STACK})", positive=True, maximum=MAX_STACK)] +
+    _PORTS, [Param("n", "-", "number of elements (whole number)", positive=True, maximum=MAX_STACK)] +
     [replace(p, doc=p.doc + " (of one element)") for p in _PARAMS],
     _QTY))

@@ -42,6 +42,14 @@ class Param:
     def required(self) -> bool:
         return self.default is REQUIRED
 
+    @property
+    def bounds(self) -> str:
+        """The declared rules as text, e.g. ``> 0, <= 50`` ('' when there are none)."""
+        rules = ["> 0"] * self.positive + [">= 0"] * self.nonnegative + ["!= 0"] * self.nonzero
+        if self.maximum is not None:
+            rules.append(f"<= {self.maximum:g}")
+        return ", ".join(rules)
+
     def problem(self, value: float) -> str:
         """Why the constant ``value`` is not acceptable for this parameter ('' when it is)."""
         if self.positive and not value > 0:
@@ -78,7 +86,7 @@ class ElementType:
         lines += ["", "| parameter | unit | default | meaning |", "| --- | --- | --- | --- |"]
         for p in self.params:
             default = "required" if p.required else ("—" if p.default is None else f"`{p.default}`")
-            extra = f" (one of {', '.join(p.choices)})" if p.choices else ""
+            extra = f" (one of {', '.join(p.choices)})" if p.choices else f" ({p.bounds})" if p.bounds else ""
             lines.append(f"| `{p.name}` | {p.unit or '–'} | {default} | {p.doc}{extra} |")
         for group in self.one_of:
             lines.append(f"\nGive exactly one of {', '.join(f'`{g}`' for g in group)}.")
@@ -93,7 +101,7 @@ class ElementType:
         lines.append("  parameters:")
         for p in self.params:
             default = "required" if p.required else f"default {p.default!r}"
-            extra = f" one of {', '.join(p.choices)}" if p.choices else ""
+            extra = f" one of {', '.join(p.choices)}" if p.choices else f", {p.bounds}" if p.bounds else ""
             lines.append(f"    {p.name} [{p.unit or '-'}] ({p.kind}, {default}{extra}): {p.doc}")
         for group in self.one_of:
             lines.append(f"    (give exactly one of: {', '.join(group)})")

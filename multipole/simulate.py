@@ -166,6 +166,10 @@ DENSE_JACOBIAN_STATES = 4000
 #: largest to its smallest nonzero |eigenvalue| (after the fast transient, what the solution does
 #: is set by the inputs, which the Jacobian does not know).
 MIN_STIFFNESS_RATIO = 10.0
+#: Above this ratio, and with ``|λ|max·t_end`` above :data:`LONG_HORIZON`, a model is stiff even when
+#: the accuracy estimate would allow an explicit method (its fast modes may never be excited).
+WIDE_STIFFNESS_RATIO = 1e3
+LONG_HORIZON = 2e4
 #: Order of the local error estimate plus one (``q``) of the explicit candidates.
 _ERROR_ORDER = {"RK45": 5, "DOP853": 8}
 
@@ -174,15 +178,18 @@ _ERROR_ORDER = {"RK45": 5, "DOP853": 8}
 class Stiffness:
     """What ``auto`` knows about a model at t = 0 over a horizon ``t_end`` (see :func:`stiffness`).
 
-    A mode ``exp(λt)`` *decays* when ``-Re λ · t_end > ln(1/rtol)``: it dies out below the tolerance
-    within the horizon.  The modes that do not decay must be resolved by any method, with steps
-    ``h = c/|λ|``, ``c = (q!·rtol)^(1/q)`` (the local error ``(h|λ|)^q/q!`` at ``rtol``); a decaying
-    mode costs about ``q/c`` steps while it dies out, whatever its speed.  That is
-    ``steps_accuracy``.  An explicit method must in addition keep ``h·|λ| <= r(arg λ)`` for every
-    decaying mode (``r``: the radius of its stability region, :func:`rk_stability_radius`); that is
-    ``steps_stability``.  The model is stiff for the explicit candidate when stability forces more
-    steps than accuracy needs (the method would run at its stability limit, where its step-size
-    control and dense output are no longer accurate) and its time scales are apart.
+    A mode ``exp(λt)`` must be resolved with steps ``h = c/|λ|``, ``c = (q!·rtol)^(1/q)`` (the local
+    error ``(h|λ|)^q/q!`` at ``rtol``) for as long as it matters: over the whole horizon if it does
+    not decay, else while it dies out — with the step growing as its amplitude falls, about
+    ``q/(c·|Re λ|)`` seconds' worth of ``|λ|`` (``q/c`` steps for a real mode, many more for a lightly
+    damped oscillation).  The most expensive mode gives ``steps_accuracy``.  An explicit method must
+    in addition keep ``h·|λ| <= r(arg λ)`` for every damped mode (``r``: the radius of its stability
+    region, :func:`rk_stability_radius`): ``steps_stability``.  The model is stiff for the explicit
+    candidate when stability forces more steps than accuracy needs (the method would run at its
+    stability limit, where its step-size control and dense output are no longer accurate) and its
+    time scales are at least :data:`MIN_STIFFNESS_RATIO` apart; or when the stability bound alone is
+    large (``|λ|max·t_end > 2e4``) and the time scales are :data:`WIDE_STIFFNESS_RATIO` apart: fast
+    modes the inputs may never excite, for which an explicit method would pay all the same.
     """
 
     eigenvalues: np.ndarray       # all of them, or the Ritz values of the estimate [1/s]
@@ -192,10 +199,13 @@ class Stiffness:
     explicit: str                 # the explicit candidate at this tolerance
     steps_accuracy: float         # steps the tolerance implies over t_end
     steps_stability: float        # steps the explicit candidate's stability forces over t_end
+    t_end: float                  # the horizon [s]
 
     @property
     def stiff(self) -> bool:
-        return self.steps_stability > self.steps_accuracy and self.ratio >= MIN_STIFFNESS_RATIO
+        if self.lam_max * self.t_end > LONG_HORIZON and self.ratio > WIDE_STIFFNESS_RATIO:
+            return True
+        return bool(self.steps_stability > self.steps_accuracy and self.ratio >= MIN_STIFFNESS_RATIO)
 
 
 @functools.lru_cache(maxsize=None)
@@ -290,12 +300,13 @@ def stiffness(model, t_end: float, rtol: float, exact_states: int = EXACT_EIGEN_
     lam_max = float(mags.max(initial=0.0))
     nonzero = mags[mags > 1e-12 * max(lam_max, 1e-300)]
     ratio = lam_max / float(nonzero.min()) if nonzero.size else 1.0
-    decays = -lam.real * t_end > math.log(1.0 / tol)
-    steps_accuracy = (t_end * float(mags[~decays].max(initial=0.0)) + q) / c
-    fast = lam[decays]
-    fast = fast[np.abs(fast) >= np.abs(fast).max(initial=0.0) / 8]     # r varies by less than 8 with the angle
-    h_stab = min((rk_stability_radius(explicit, float(np.angle(z))) / abs(z) for z in fast), default=math.inf)
-    return Stiffness(lam, how, lam_max, ratio, explicit, steps_accuracy, t_end / h_stab)
+    rate = -lam.real                                                  # decay rate [1/s]
+    lasts = np.minimum(t_end, q / np.where(rate > 0, rate, q / t_end))  # how long each mode matters [s]
+    steps_accuracy = max(float(np.max(mags * lasts, initial=0.0)), q) / c
+    damped = lam[rate > 0]
+    damped = damped[np.abs(damped) >= np.abs(damped).max(initial=0.0) / 8]   # r varies < 8x with the angle
+    h_stab = min((rk_stability_radius(explicit, float(np.angle(z))) / abs(z) for z in damped), default=math.inf)
+    return Stiffness(lam, how, lam_max, ratio, explicit, steps_accuracy, t_end / h_stab, t_end)
 
 
 def choose_solver(model, t_end: float, rtol: float) -> tuple[str, str]:

@@ -40,9 +40,10 @@ import numpy as np
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-VERBS = ("check", "simulate", "equations")
+VERBS = ("check", "simulate", "equations", "linearize", "diagram")
 EXIT_CODES = (0, 1, 2, 3)
 SIM_ARGS = ["--t-end", "0.002", "--dt-out", "0.001", "--quiet"]
+EXTRA_ARGS = {"simulate": SIM_ARGS, "diagram": ["-o", "fuzz_diagram.svg"]}   # diagram writes in the cwd
 NON_FINITE = re.compile(r"= -?(nan|inf)\b")       # a final value printed by simulate
 
 
@@ -452,7 +453,7 @@ def run_case(verb: str, path: str, time_cap: float = 20.0) -> tuple[str, int | N
     or anything before it there, or a traceback printed), ``wrong_result`` (simulate exit 0 with a
     non-finite final value)."""
     from multipole.cli import main
-    args = [verb, path] + (SIM_ARGS if verb == "simulate" else [])
+    args = [verb, path] + EXTRA_ARGS.get(verb, [])
     out, err = io.StringIO(), io.StringIO()
     previous = signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, time_cap)
@@ -485,6 +486,7 @@ def run_case(verb: str, path: str, time_cap: float = 20.0) -> tuple[str, int | N
 
 def _worker(conn, memory_mb: int, time_cap: float, folder: str):
     import resource
+    signal.signal(signal.SIGINT, signal.SIG_IGN)          # Ctrl-C stops the parent, which stops us
     limit = memory_mb * 1024 * 1024
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     os.environ.setdefault("MULTIPOLE_CACHE", "off")
@@ -528,10 +530,10 @@ OUTCOMES = ("ok", "traceback", "hang", "exit_code", "output", "wrong_result", "k
 
 def campaign(counts: dict, seed: int, out: Path, memory_mb: int, time_cap: float, workers: int = 1) -> Counter:
     """Run ``counts[verb]`` cases per verb on ``workers`` subprocesses; print and return the tally."""
-    from multiprocessing.connection import wait
     out.mkdir(parents=True, exist_ok=True)
-    jobs = [(verb, index) for verb, n in counts.items() for index in range(n)]
-    jobs.reverse()
+    # verbs interleaved in proportion, so a campaign stopped early (Ctrl-C) has covered each of them
+    jobs = sorted(((verb, index) for verb, n in counts.items() for index in range(n)),
+                  key=lambda job: ((job[1] + 0.5) / counts[job[0]], job[0]), reverse=True)
     tally, exits = Counter(), Counter()
     pool = []
     for k in range(workers):
@@ -553,6 +555,30 @@ def campaign(counts: dict, seed: int, out: Path, memory_mb: int, time_cap: float
             bad = sum(v for (vb, o), v in tally.items() if o != "ok")
             print(f"{done}/{sum(counts.values())} cases, {time.time() - start:.0f} s, {bad} failures", flush=True)
 
+    try:
+        _drive(pool, jobs, record, seed, memory_mb, time_cap, out)
+    except KeyboardInterrupt:
+        print("interrupted: the counts below are the cases run so far")
+    for w in pool:
+        if w.job is None and w.proc.is_alive():
+            w.conn.send(None)
+        w.stop()
+    lines = [f"{'verb':<10} {'cases':>6} " + " ".join(f"{o:>12}" for o in OUTCOMES) + "   exit codes"]
+    for verb in counts:
+        codes = ", ".join(f"{c}: {k}" for (vb, c), k in sorted(exits.items(), key=lambda i: str(i[0][1]))
+                          if vb == verb)
+        ran = sum(k for (vb, o), k in tally.items() if vb == verb)
+        lines.append(f"{verb:<10} {ran:>6} " + " ".join(f"{tally[(verb, o)]:>12}" for o in OUTCOMES) + f"   {codes}")
+    lines.append(f"seed {seed}, wall time {time.time() - start:.0f} s with {workers} worker(s), memory cap "
+                 f"{memory_mb} MB, time cap {time_cap:g} s per case; failing inputs in {out}")
+    print("\n" + "\n".join(lines))
+    (out / "summary.txt").write_text("\n".join(lines) + "\n")
+    return tally
+
+
+def _drive(pool, jobs, record, seed, memory_mb, time_cap, out):
+    """Hand out jobs to idle workers, collect answers, replace workers that die or stop answering."""
+    from multiprocessing.connection import wait
     while jobs or any(w.job for w in pool):
         for k, w in enumerate(pool):
             if w.job is None and jobs:
@@ -577,16 +603,6 @@ def campaign(counts: dict, seed: int, out: Path, memory_mb: int, time_cap: float
                 continue
             w.stop()
             pool[k] = Worker(memory_mb, time_cap, str(out / f"work{k}"))
-    for w in pool:
-        w.conn.send(None)
-        w.stop()
-    print(f"\n{'verb':<10} {'cases':>6} " + " ".join(f"{o:>12}" for o in OUTCOMES) + "   exit codes")
-    for verb, n in counts.items():
-        codes = ", ".join(f"{c}: {k}" for (vb, c), k in sorted(exits.items(), key=lambda i: str(i[0][1]))
-                          if vb == verb)
-        print(f"{verb:<10} {n:>6} " + " ".join(f"{tally[(verb, o)]:>12}" for o in OUTCOMES) + f"   {codes}")
-    print(f"wall time {time.time() - start:.0f} s with {workers} worker(s); failing inputs in {out}")
-    return tally
 
 
 def main(argv=None) -> int:
@@ -594,13 +610,15 @@ def main(argv=None) -> int:
     ap.add_argument("--check", type=int, default=10_000, help="netlists through check")
     ap.add_argument("--simulate", type=int, default=1_000, help="netlists through simulate (short horizon)")
     ap.add_argument("--equations", type=int, default=1_000, help="netlists through equations")
+    ap.add_argument("--linearize", type=int, default=0, help="netlists through linearize")
+    ap.add_argument("--diagram", type=int, default=0, help="netlists through diagram (an SVG in the worker's folder)")
     ap.add_argument("--seed", type=int, default=2026)
     ap.add_argument("--memory-mb", type=int, default=3000, help="address-space cap of the worker")
     ap.add_argument("--time-cap", type=float, default=30.0, help="seconds per case")
     ap.add_argument("--workers", type=int, default=1, help="worker subprocesses")
     ap.add_argument("-o", "--output", default="fuzz_out", help="folder for failing inputs")
     args = ap.parse_args(argv)
-    counts = {"check": args.check, "simulate": args.simulate, "equations": args.equations}
+    counts = {verb: getattr(args, verb) for verb in VERBS}
     tally = campaign({v: n for v, n in counts.items() if n}, args.seed, Path(args.output), args.memory_mb,
                      args.time_cap, args.workers)
     return 0 if all(o == "ok" for (v, o) in tally.elements()) else 1

@@ -587,7 +587,7 @@ def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: floa
         while i_sched < len(schedule) and schedule[i_sched][0] <= t:     # a scheduled crossing
             _, k, side = schedule[i_sched]
             t_sides[k] = side
-            events.append((t, model.switch_text[k]))
+            events.append((float(t), model.switch_text[k]))
             i_sched += 1
             _check_chattering(events)
         t_bound = schedule[i_sched][0] if i_sched < len(schedule) else t_end

@@ -247,6 +247,25 @@ def _sources(flat):
 # ---------------------------------------------------------------------------------------------
 # the checks, in report order
 
+def _zeros(eq, flat, kept=frozenset()) -> set:
+    """Variables the solved equations make identically zero: grounds (zero inputs) and the
+    terminations of unconnected ports, propagated through the explicit solutions.  A block owned by
+    an equation in ``kept`` is treated as nonzero (to see which termination causes a zero)."""
+    zeros = {u for u, e in flat.inputs.items() if _zero_value(flat, e)}
+    for block in eq.blocks:
+        if block.solution is None or kept & set(block.owners):
+            continue
+        for v, sol in zip(block.variables, block.solution):
+            sol = sp.sympify(sol)
+            if sol.xreplace({z: 0 for z in sol.free_symbols & zeros}) == 0:
+                zeros.add(v)
+    return zeros
+
+
+#: at most this many unconnected ports are tried one by one to name the one that silences a source
+_MAX_CULPRITS = 24
+
+
 @register("powerless_source", "warning",
           "a source whose power variable is forced to zero by an open pin or a free end the netlist "
           "left unconnected (a forgotten ground): it delivers no power and the simulation stays at rest",
@@ -256,56 +275,46 @@ def powerless_source(ctx: Context):
     if eq is None:
         return
     flat, names, aliases = ctx.flat, ctx.names, ctx.analysis.aliases
-    zeros = {u for u, e in flat.inputs.items() if _zero_value(flat, e)}
-    for block in eq.blocks:
-        if block.solution is None:
-            continue
-        for v, sol in zip(block.variables, block.solution):
-            sol = sp.sympify(sol)
-            if sol.xreplace({z: 0 for z in sol.free_symbols & zeros}) == 0:
-                zeros.add(v)
+    terminations = {node.name: node for node in flat.nodes
+                    if node.origin == "termination" and names.port(node.ports[0])}
+    if not terminations:
+        return
+    zeros = _zeros(eq, flat)
+    unforced = None                     # zeros with every termination treated as connected
     comp = {}
     for k, part in enumerate(nx.connected_components(element_graph(flat))):
         comp.update({n: k for kind, n in part if kind == "el"})
     for path, prim in _sources(flat):
         conj = "f" if prim.kind == "Se" else "e"
         sym = var(f"{path}.p.{conj}")
-        if aliases.get(sym, (sym, 1))[0] not in zeros:
+        rep = aliases.get(sym, (sym, 1))[0]
+        if rep not in zeros:
             continue
+        unforced = _zeros(eq, flat, frozenset(terminations)) if unforced is None else unforced
+        if rep in unforced:
+            continue                    # zero whatever is connected (a floating reference): by design
         element = flat.element_of(path)
+        near = sorted((n for n, node in terminations.items()
+                       if comp.get(flat.element_of(node.ports[0])) == comp.get(element)),
+                      key=lambda n: (flat.element_of(terminations[n].ports[0]) != element, n))
+        culprits = [names.port(terminations[n].ports[0]) for n in near[:_MAX_CULPRITS]
+                    if rep not in _zeros(eq, flat, frozenset([n]))]
+        culprits = culprits or [names.port(terminations[n].ports[0]) for n in near]
+        if not culprits:
+            continue
         dom = prim.ports["p"]
-        noun = dom.flow if conj == "f" else dom.effort
-        open_ports = []
-        for node in flat.nodes:
-            if node.origin != "termination":
-                continue
-            pp = node.ports[0]
-            forced = var(f"{pp}.{node.domain.free_variable}")
-            user = names.port(pp)
-            if user and aliases.get(forced, (forced, 1))[0] in zeros and \
-                    comp.get(flat.element_of(pp), -1) == comp.get(element, -2):
-                open_ports.append(user)
-        open_ports.sort(key=lambda p: (flat.element_of(p) != element, p))
-        if open_ports:
-            first = open_ports[0]
-            odom = flat.port_domains[flat.external_ports[first]]
-            how = f"open: no {odom.flow} flows through it" if odom.free_variable == "f" \
-                else f"a free end: nothing takes up {article(odom.effort)} there"
-            if odom.name in ("electrical", "hydraulic"):
-                fix = f"connect {first} to ground (or to the rest of the circuit)"
-            else:
-                fix = f"connect {first} to the part it should drive, or to a ground"
-            yield Diagnostic(
-                "powerless_source",
-                f"{element} can deliver no power: its {noun} is forced to zero because "
-                f"{listing(open_ports[:3])} {'is' if len(open_ports) == 1 else 'are'} not connected "
-                f"({how}), so everything it should drive stays at rest",
-                fix, elements=[element], ports=open_ports[:3])
-        else:
-            yield Diagnostic(
-                "powerless_source",
-                f"{element} can deliver no power: its {noun} is forced to zero by what it is connected to",
-                f"connect {element} to the part it should drive", elements=[element])
+        first = culprits[0]
+        odom = flat.port_domains[flat.external_ports[first]]
+        how = f"open: no {odom.flow} flows through it" if odom.free_variable == "f" \
+            else f"a free end: nothing takes up {article(odom.effort)} there"
+        fix = f"connect {first} to ground (or to the rest of the circuit)" if odom.name in ("electrical", "hydraulic") \
+            else f"connect {first} to the part it should drive, or to a ground"
+        yield Diagnostic(
+            "powerless_source",
+            f"{element} can deliver no power: its {dom.flow if conj == 'f' else dom.effort} is forced to zero "
+            f"because {listing(culprits[:3])} {'is' if len(culprits) == 1 else 'are'} not connected ({how}), "
+            "so everything it should drive stays at rest",
+            fix, elements=[element], ports=culprits[:3])
 
 
 @register("isolated_subnetwork", "warning",

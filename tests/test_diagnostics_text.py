@@ -232,6 +232,10 @@ def test_open_ground_is_warned_first_and_named():
     assert an.ok and an.diagnostics[0].code == "powerless_source"
     d = an.diagnostics[0]
     assert d.severity == "warning" and d.ports == ["supply.n"] and d.fix.startswith("connect supply.n to ground")
+    flywheel = OPEN_GROUND.replace("  - [load.b, bearing.a, brake.p]", "  - [load.b, bearing.a, brake.p, flywheel.a]") \
+        .replace("  housing:", "  flywheel: {type: inertia, J: 1.0e-5}\n  housing:")
+    [d] = [d for d in pipeline.check(scene(flywheel)).diagnostics if d.severity == "warning"]
+    assert d.ports == ["supply.n"]          # the flywheel's free end b does not silence the supply
     with pytest.warns(MultipoleWarning, match=r"\[powerless_source\] supply can deliver no power.*supply\.n"):
         res = run(OPEN_GROUND.replace("t_end: 1.6", "t_end: 0.01"))      # simulate repeats the warning
     assert np.all(res["motor.current"] == 0.0)
@@ -244,6 +248,15 @@ def test_open_ground_warning_is_printed_first(tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     assert lines[1].startswith("  warning[powerless_source] supply can deliver no power")
     assert lines[-1] == "well-posed: 0 error(s), 1 warning(s), 1 state(s)"
+
+
+def test_a_source_that_only_sets_a_potential_is_not_warned_about():
+    """The offset source of a floating motor circuit carries no current by design (nothing closes a
+    loop through it): its zero current comes from the circuit, not from an unconnected pin — not even
+    from the free shaft end in the same scene."""
+    from test_dc_motor import motor_scene
+    an = pipeline.check(scene(motor_scene(shaft="free", motor_extra=", grounded: false", supply="floating")))
+    assert an.ok and [d.code for d in an.diagnostics if d.severity == "warning"] == []
 
 
 def test_spare_part_that_moves_from_its_initial_value_is_not_isolated():

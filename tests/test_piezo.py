@@ -238,6 +238,9 @@ def test_stack_equals_lumped_element():
     common = dict(elec="source", tip="mass", u="U*step(t)", m=0, load=0.05, t_end=4e-5, dt=4e-8)
     stack = run(piezo_scene("stack", n, r=R_EL, **common))
     lumped = run(piezo_scene("element", 1, r=R_EL / n, k=n * K_P, delta=n * DELTA_P, c=n * C_P, **common))
+    # electrical modes of 2e7-4e7 1/s die out next to a 1.8e5 rad/s load mode: DOP853 would run at its
+    # stability limit (its charge came out 3.7e-6 off); auto must take the implicit method for both
+    assert stack.solver == lumped.solver == "Radau", (stack.solver_reason, lumped.solver_reason)
     for out in ("piezo.stroke", "piezo.charge", "piezo.current", "piezo.force"):
         scale = np.abs(lumped[out]).max()
         assert np.max(np.abs(stack[out] - lumped[out])) <= 1e-6 * scale, out

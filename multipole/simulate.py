@@ -735,8 +735,8 @@ def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> t
     function k [rad/s] (0: none, inf: unknown).  Where ``roots[k]`` lists its crossings
     ``[(t, side after), ...]`` (a polynomial in t, :func:`multipole.codegen.time_switches`) those
     are taken.  The others are sampled at ``t_end/TIME_SAMPLES`` or ``SAMPLES_PER_HALF_PERIOD``
-    points per half period of that sine, whichever is finer, and every sign change between samples
-    is located by Brent's method (to 1e-14 s).  Returns ``([(t, k, side after), ...] in time order,
+    points per half period of that sine, whichever is finer, and at those crossings, and every sign
+    change between samples is located by Brent's method (to 1e-14 s).  Returns ``([(t, k, side after), ...] in time order,
     sides)``, ``sides[k]`` being the side (±1) of function k at the start (its first non-zero sign).
     Sampling stops after ``MAX_EVENTS + 1`` crossings (the run then stops as chattering)."""
     time_only = np.array(time_only, dtype=bool)       # a copy: cleared below where roots are known
@@ -767,8 +767,11 @@ def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> t
     out: list = []
     last = np.zeros(len(ks))          # sign of the last non-zero sample of each function, and its time
     t_last = np.zeros(len(ks))
-    for start in range(0, n + 1, 4096):
-        ts = np.minimum(np.arange(start, min(start + 4096, n + 1)) * h, t_end)
+    # the crossings of the polynomial ones are sampled too: a narrow feature at a kink (a notch
+    # step(abs(t - tc) - a)) is seen there whatever the spacing
+    t_all = np.union1d(np.minimum(np.arange(n + 1) * h, t_end), [c[0] for c in known])
+    for start in range(0, len(t_all), 4096):
+        ts = t_all[start:start + 4096]
         vals = np.array([np.asarray(g(tt), dtype=float)[ks] for tt in ts]).reshape(len(ts), len(ks))
         signs = np.sign(vals)
         for j, k in enumerate(ks):

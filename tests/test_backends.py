@@ -339,6 +339,18 @@ def test_a_model_numba_cannot_compile_runs_on_numpy_visibly(nb, monkeypatch):
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
 
 
+def test_a_model_the_numba_printer_cannot_translate_runs_on_numpy_visibly(nb, monkeypatch):
+    from multipole.errors import MultipoleWarning
+
+    def mismatch(eq, outputs):
+        raise nb.CodegenMismatch("the kernel's Jacobian code has an unexpected shape")
+    monkeypatch.setattr(nb, "translate", mismatch)
+    with pytest.warns(MultipoleWarning, match="CodegenMismatch"):
+        res = pipeline.run(load(RLC), t_end=0.01, progress=False, backend="numba")
+    assert res.stats["backend"].startswith("numpy (fallback: CodegenMismatch: the kernel's Jacobian")
+    assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
+
+
 def test_the_cli_shows_a_fallback_as_one_warning_line(nb, monkeypatch, capsys):
     _numba_cannot_compile(nb, monkeypatch)
     assert main(["simulate", str(RLC), "--backend", "numba", "--quiet", "--t-end", "0.01"]) == 0

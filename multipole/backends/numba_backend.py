@@ -495,7 +495,10 @@ def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1
                               f"use auto or one of {', '.join(METHODS)}")
     outputs = list(outputs)
     start = time.perf_counter()
-    source, switch_text = translate(equations, outputs)
+    try:
+        source, switch_text = translate(equations, outputs)
+    except CodegenMismatch as exc:
+        return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
     translate_time = time.perf_counter() - start
     n = len(equations.states)
     x0 = _initial_state(equations)

@@ -250,10 +250,13 @@ def _sources(flat):
 def _zeros(eq, flat, kept=frozenset()) -> set:
     """Variables the solved equations make identically zero: grounds (zero inputs) and the
     terminations of unconnected ports, propagated through the explicit solutions.  A block owned by
-    an equation in ``kept`` is treated as nonzero (to see which termination causes a zero)."""
+    an equation in ``kept`` is treated as nonzero (to see which termination causes a zero).  Zeros
+    do not pass through time derivatives (state equations, differentiated constraints): a constant
+    force on an open-circuit piezo gives zero velocity because the force is constant, which is
+    physics, not a forgotten connection."""
     zeros = {u for u, e in flat.inputs.items() if _zero_value(flat, e)}
     for block in eq.blocks:
-        if block.solution is None or kept & set(block.owners):
+        if block.solution is None or kept & set(block.owners) or any(n.startswith("d/dt ") for n in block.notes):
             continue
         for v, sol in zip(block.variables, block.solution):
             sol = sp.sympify(sol)

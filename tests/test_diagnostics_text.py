@@ -259,6 +259,16 @@ def test_a_source_that_only_sets_a_potential_is_not_warned_about():
     assert an.ok and [d.code for d in an.diagnostics if d.severity == "warning"] == []
 
 
+@pytest.mark.parametrize("kind,n", [("element", 1), ("stack", 3)])
+def test_open_electrodes_of_a_force_sensor_are_not_a_forgotten_ground(kind, n):
+    """A massless piezo sensor with open electrodes under a constant force: the force source does no
+    work because the force is constant (the stroke takes its static value at t = 0), not because a
+    pin is open; sensing the open-circuit voltage is the point of the scene."""
+    from test_piezo import piezo_scene
+    an = pipeline.check(scene(piezo_scene(kind, n, "open", "force", m=0, r=0, t_end=1e-6, dt=1e-7)))
+    assert an.ok and [d.code for d in an.diagnostics if d.severity == "warning"] == []
+
+
 def test_spare_part_that_moves_from_its_initial_value_is_not_isolated():
     """A separate free system with a nonzero initial value is a legitimate second system."""
     moving = ISOLATED.replace("spare:   {type: inertia, J: 0.2}", "spare:   {type: inertia, J: 0.2, omega0: 3}")

@@ -134,6 +134,16 @@ def test_a_pulse_much_shorter_than_any_step_is_not_missed(backend):
     assert np.allclose(res["body.v"], np.where(res.t > t1, F * width / m, 0.0), rtol=1e-9, atol=1e-15)
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_more_scheduled_crossings_than_the_event_limit_end_as_chattering(backend):
+    """0.2 s of the square wave has floor(1e5*0.2/pi) = 6366 sign changes, more than MAX_EVENTS."""
+    from multipole.simulate import MAX_EVENTS, SimulationError
+    assert np.floor(1e5 * 0.2 / np.pi) > MAX_EVENTS
+    with pytest.raises(SimulationError) as err:
+        run(SQUARE_WAVE.replace("t_end: 0.02, dt_out: 1.0e-6", "t_end: 0.2, dt_out: 1.0e-4"), backend=backend)
+    assert err.value.code == "chattering"
+
+
 def test_a_time_switch_too_fast_to_resolve_is_refused():
     from multipole.simulate import SimulationError
     with pytest.raises(SimulationError) as err:

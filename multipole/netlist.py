@@ -39,7 +39,6 @@ MAX_FILE_BYTES = 1 << 20          # 1 MiB: larger files are refused without read
 MAX_YAML_NODES = 100_000          # YAML nodes after expanding aliases (refuses "billion laughs")
 MAX_ELEMENTS = 1000               # elements in one scene
 MAX_LIST = 1000                   # entries of a list parameter
-MAX_OUTPUT_ROWS = 10_000_000      # rows of the output grid, t_end/dt_out
 MAX_STEPS = 100_000_000           # t_end/max_step
 MIN_RTOL = 1e-14                  # below it the integrators cannot meet the tolerance in float64
 
@@ -229,7 +228,7 @@ def validate_simulate_options(options: dict, where: str = "", lines: dict | None
     ``dt_out <= t_end`` is checked across both).  Raises :class:`NetlistError` (code ``not_numeric``
     for a value that is not a positive finite number, ``bad_option`` for one out of range,
     ``unknown_key``, ``unknown_solver``); ``where`` is the file name and ``lines`` maps an option
-    to its line.
+    to its line.  The size of the output grid is checked by :func:`multipole.simulate.output_grid`.
     """
     lines = lines or {}
 
@@ -265,9 +264,6 @@ def validate_simulate_options(options: dict, where: str = "", lines: dict | None
         if dt_out > t_end:
             raise err("bad_option", "dt_out", f"simulate.dt_out = {dt_out:g} s is longer than t_end = {t_end:g} s",
                       "choose dt_out <= t_end")
-        if t_end / dt_out > MAX_OUTPUT_ROWS:
-            raise err("bad_option", "dt_out", f"t_end/dt_out = {t_end / dt_out:.3g} output rows "
-                      f"(limit {MAX_OUTPUT_ROWS:.0e})", "choose a larger dt_out or a shorter t_end")
     if t_end is not None and max_step is not None and t_end / max_step > MAX_STEPS:
         raise err("bad_option", "max_step", f"t_end/max_step = {t_end / max_step:.3g} steps (limit {MAX_STEPS:.0e})",
                   "choose a larger max_step")

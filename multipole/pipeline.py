@@ -23,7 +23,7 @@ from .diagnostics import run_checks
 from .codegen import Model, compile_model
 from .equations import Equations, assemble
 from .errors import IllPosedError, MultipoleError, MultipoleWarning, NetlistError
-from .netlist import Scene
+from .netlist import Scene, validate_simulate_options
 from .network import flatten
 from .simulate import Result, simulate
 
@@ -175,9 +175,12 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
     runs; see :mod:`multipole.backends`.
     """
     opts = dict(scene.simulate)
+    if t_end is not None and dt_out is None and opts.get("dt_out", 0.0) > t_end:
+        del opts["dt_out"]          # the scene's grid was chosen for its own, longer t_end
     for key, value in (("t_end", t_end), ("dt_out", dt_out), ("solver", solver), ("rtol", rtol), ("atol", atol)):
         if value is not None:
             opts[key] = value
+    opts = validate_simulate_options(opts, scene.path)   # the loader's rules for command-line values too
     if "t_end" not in opts:
         raise NetlistError("no_t_end", "no simulation time given", "add simulate: {t_end: ...} or use --t-end",
                            scene.path)

@@ -486,9 +486,12 @@ def derivative_causality(ctx: Context):
     for f in ctx.findings("demoted"):
         elements = ctx.names.elements_of(ctx.analysis.equations[i].owner for i in f.equations)
         states = {s.symbol: s for s in flat.states}
-        kinds = {flat.primitives[states[s].owner].kind for s in f.states}
-        what = "an effective inertia" if kinds <= {"I"} else \
-            "an effective compliance" if kinds <= {"C", "CField"} else "effective storage"
+        prims = [flat.primitives[states[s].owner] for s in f.states]
+        kinds = {p.kind for p in prims}
+        inertia = {"electrical": "inductance", "hydraulic": "inertance"}     # mechanical: inertia
+        domains = {next(iter(p.ports.values())).name for p in prims}
+        what = f"an effective {inertia.get(domains.pop(), 'inertia') if len(domains) == 1 else 'inertia'}" \
+            if kinds <= {"I"} else "an effective compliance" if kinds <= {"C", "CField"} else "effective storage"
         yield Diagnostic(
             "derivative_causality",
             f"storage joined rigidly through {', '.join(elements)}: "

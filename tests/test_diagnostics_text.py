@@ -289,3 +289,12 @@ def test_the_diagnostics_page_lists_every_code_with_its_severity():
     rows = dict(re.findall(r"^\| `(\w+)` \| (\w+) \|", (ROOT / "docs" / "diagnostics.md").read_text(), re.MULTILINE))
     assert rows == {code: check.severity for code, check in REGISTRY.items()}
     assert list(rows) == list(REGISTRY)          # in report order
+
+
+def test_the_forgotten_ground_example_of_the_page_is_what_check_prints(tmp_path, capsys, monkeypatch):
+    page = (ROOT / "docs" / "diagnostics.md").read_text()
+    shown = re.search(r"\$ multipole check dc_motor_open.yaml\n(.*?)\n```", page, re.DOTALL).group(1)
+    (tmp_path / "dc_motor_open.yaml").write_text(OPEN_GROUND)
+    monkeypatch.chdir(tmp_path)
+    assert main(["check", "dc_motor_open.yaml"]) == 0
+    assert capsys.readouterr().out.rstrip("\n") == shown

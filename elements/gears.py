@@ -336,7 +336,8 @@ def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None, z1=
 # -- catalogue ---------------------------------------------------------------------------------
 
 _LAW_DOC = ("a number or an expression of the mesh phase q = z1*phi1 [rad] (one tooth engagement = 2*pi), "
-            "e.g. 'c0*(1 + 0.2*cos(q))', or a table over one engagement, symmetric about its middle: "
+            "e.g. 'c0*(1 + 0.2*cos(q))', or of the time t (parametric excitation, e.g. 'c0*(1 + 0.2*cos(W*t))'), "
+            "or a table over one engagement, symmetric about its middle: "
             "'interp(acos(cos(q)), [1.1, 1.4], [c_single, c_double])'")
 
 SPUR_PARAMS = [

@@ -143,15 +143,13 @@ def piezo_stack(n, k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
         "voltage": Quantity(lambda V: V.e("plus.ext") - V.e("minus.ext"), "V", "terminal voltage e_a - e_b"),
         "current": Quantity(lambda V: V.f("plus.ext"), "A", "current into elec_a"),
     }
-    # Without electrode resistance the parallel fields share one voltage and their charges go into
-    # derivative causality; without masses the series fields share one force and their extensions
-    # do.  Name the states to keep integrated (the other field state of each element is the natural
-    # one to resolve), which also steers round the analyser's tie-breaking (see docs/weber-piezo-motor.md).
-    keep = "q1" if literal_zero(R_) else "q2" if literal_zero(m) else None
-    prefer = [f"{name}.field.{keep}" for name in names] if keep else []
+    # Without electrode resistance the parallel fields share one voltage, without masses the series
+    # fields share one force: the analyser puts the surplus field states into derivative causality
+    # and chooses them itself (no prefer_state: which ones depends on what drives the stack, e.g. the
+    # charges of an open stack must keep their sum integrated).
     return Network("piezo_stack", children, connections, ports,
                    params={k: v for k, v in params.items() if not literal_zero(v)}, quantities=quantities,
-                   doc="Weber Bild 38: piezo stack translator", prefer_state=prefer)
+                   doc="Weber Bild 38: piezo stack translator")
 
 
 _PORTS = {"mech_a": "translational: base (Weber port 0); force on the element, velocity of the base",

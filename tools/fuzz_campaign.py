@@ -42,8 +42,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 VERBS = ("check", "simulate", "equations", "linearize", "diagram")
 EXIT_CODES = (0, 1, 2, 3)
-SIM_ARGS = ["--t-end", "0.002", "--dt-out", "0.001", "--quiet"]
-EXTRA_ARGS = {"simulate": SIM_ARGS, "diagram": ["-o", "fuzz_diagram.svg"]}   # diagram writes in the cwd
+T_END = 0.002                     # simulate: the horizon, or the scene's own if that is shorter
+EXTRA_ARGS = {"diagram": ["-o", "fuzz_diagram.svg"]}   # diagram writes in the working folder
 NON_FINITE = re.compile(r"= -?(nan|inf)\b")       # a final value printed by simulate
 
 
@@ -441,6 +441,21 @@ def netlist(seed: int, index: int, files=None) -> str | bytes:
 
 # -- running one case ------------------------------------------------------------------------------
 
+def simulate_args(path: str) -> list:
+    """``--t-end`` T_END or the scene's own ``t_end`` if shorter (a fuzzed run must not be made longer
+    than the scene asks), and ``--dt-out`` half of it."""
+    t_end = T_END
+    try:
+        if os.path.getsize(path) < 1 << 16:
+            with open(path, encoding="utf-8") as fh:
+                own = yaml.safe_load(fh)["simulate"]["t_end"]
+            if isinstance(own, (int, float)) and 0 < own < T_END:
+                t_end = float(own)
+    except Exception:                  # noqa: BLE001 - any damage: the default horizon
+        pass
+    return ["--t-end", repr(t_end), "--dt-out", repr(t_end / 2), "--quiet"]
+
+
 def _alarm(signum, frame):
     raise CaseTimeout()
 
@@ -453,7 +468,7 @@ def run_case(verb: str, path: str, time_cap: float = 20.0) -> tuple[str, int | N
     or anything before it there, or a traceback printed), ``wrong_result`` (simulate exit 0 with a
     non-finite final value)."""
     from multipole.cli import main
-    args = [verb, path] + EXTRA_ARGS.get(verb, [])
+    args = [verb, path] + (simulate_args(path) if verb == "simulate" else EXTRA_ARGS.get(verb, []))
     out, err = io.StringIO(), io.StringIO()
     previous = signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, time_cap)

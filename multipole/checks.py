@@ -512,29 +512,8 @@ def initial_values(ctx: Context):
 @register("algebraic_loop", "info", "a loop without storage: solved symbolically when linear, by Newton otherwise",
           stage="equations")
 def algebraic_loop(ctx: Context):
-    eq = ctx.equations()
-    if eq is None:
-        return
-    names = ctx.names
-    for block in eq.blocks:
-        derivative = any(v.name.startswith("der(") for v in block.variables)
-        if block.kind == "explicit" or (block.kind == "linear" and derivative):
-            continue
-        torn = [b for b in eq.blocks if b.kind == "explicit" and b.variables[0] in block.torn]
-        owners = list(block.owners) + [o for b in torn for o in b.owners]
-        variables = list(block.variables) + [v for b in torn for v in b.variables]
-        elements = names.elements_of(owners)
-        kind = "linear" if block.kind == "linear" else "nonlinear"
-        how = "solved symbolically" if block.solution is not None else \
-            "solved numerically in the generated code" if kind == "linear" else \
-            "iterated by Newton's method in the generated code"
-        if torn:
-            how += f" on {names.variables(block.variables, 2)}, the others explicit from it"
-        unknowns = list(dict.fromkeys(names.variable(v) for v in variables))
-        yield Diagnostic(
-            "algebraic_loop",
-            f"{kind} algebraic loop through {', '.join(elements)} ({len(unknowns)} unknown(s): "
-            f"{names.variables(variables, 4)}): {how}", elements=elements)
+    eq = ctx.equations()        # the assembly words its loops (multipole.equations._loop_diag, via Names)
+    yield from (d for d in (eq.diagnostics if eq is not None else []) if d.code == "algebraic_loop")
 
 
 @register("unconnected_port", "info", "a port nobody connected takes its default termination")

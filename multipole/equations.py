@@ -44,7 +44,6 @@ class Block:
     notes: list
     matrix: sp.Matrix | None = None   # numeric linear blocks: A z = b
     rhs: sp.Matrix | None = None
-    torn: list = field(default_factory=list)   # newton blocks: loop variables torn out, explicit after it
 
 
 @dataclass
@@ -271,7 +270,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         A, b = _solve_linear(res, zs)
         if A is None:
             kept, torn = _tear(res, zs, owners, notes, analysis.flat.param_values())
-            blocks.append(Block("newton", *kept, torn=[t[0] for t in torn]))
+            blocks.append(Block("newton", *kept))
             blocks += [Block("explicit", [z], [sol], [r], [o], [n]) for z, sol, r, o, n in reversed(torn)]
             diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res, kept[0]))
             continue
@@ -289,7 +288,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         else:
             blocks.append(Block("linear", zs, None, res, owners, notes, A, b))
         if not derivative:
-            diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res))
+            diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res, symbolic=len(zs) <= SYMBOLIC_LIMIT))
     states = analysis.states
     available, units = _available(analysis)
     eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
@@ -505,13 +504,18 @@ def _tear(res, zs, owners, notes, values):
     return (zs, None, res, owners, notes), torn
 
 
-def _loop_diag(analysis, owners, zs, kind, res, iterated=None):
-    els = sorted({analysis.flat.element_of(o) for o in owners})
-    how = "solved symbolically" if kind == "linear" else "iterated by Newton's method in the generated code"
+def _loop_diag(analysis, owners, zs, kind, res, iterated=None, symbolic=True):
+    """The ``algebraic_loop`` info in the netlist's names (``multipole check`` shows it)."""
+    from .checks import Names
+    names = Names(analysis)
+    els = names.elements_of(owners)
+    how = ("solved symbolically" if symbolic else "solved numerically in the generated code") if kind == "linear" \
+        else "iterated by Newton's method in the generated code"
     if iterated is not None and len(iterated) < len(zs):
-        how += f" on {', '.join(map(str, iterated))}, the others explicit from it"
+        how += f" on {names.variables(iterated, 2)}, the others explicit from it"
+    unknowns = list(dict.fromkeys(names.variable(z) for z in zs))
     return Diagnostic("algebraic_loop", f"{kind} algebraic loop through {', '.join(els)} "
-                      f"(unknowns {', '.join(map(str, zs))}): {how}", elements=els)
+                      f"({len(unknowns)} unknown(s): {names.variables(zs, 4)}): {how}", elements=els)
 
 
 def _available(analysis: Analysis) -> dict:

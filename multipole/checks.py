@@ -458,24 +458,8 @@ def singular_loop(ctx: Context):
     exc = ctx.assembly_error
     if exc is None or exc.code != "singular_loop":
         return
-    owners = getattr(exc, "owners", None)
-    variables = getattr(exc, "variables", None)
-    if owners is None or variables is None or not exc.message.startswith("the algebraic loop for"):
-        message, fix, elements = exc.message, exc.fix, []
-        if owners:                  # the assembly's own words, with its element list in the netlist's names
-            elements = ctx.names.elements_of(owners)
-            raw = sorted({ctx.flat.element_of(o) for o in owners})
-            message = message.replace(", ".join(raw), ", ".join(elements))
-            fix = fix.replace(raw[0], elements[0]) if raw[0] not in elements else fix
-        yield Diagnostic("singular_loop", message, fix, elements=elements)
-        return
-    elements = ctx.names.elements_of(owners)
-    yield Diagnostic(
-        "singular_loop",
-        f"the algebraic loop through {', '.join(elements)} is singular: it does not determine "
-        f"{ctx.names.variables(variables)} uniquely",
-        f"check the parameters of {listing(elements)} (a loop gain or a resistance sum that is zero) "
-        "or add a storage element to the loop", elements=elements)
+    owners = getattr(exc, "owners", None)    # the assembly words it in the netlist's names
+    yield Diagnostic("singular_loop", exc.message, exc.fix, elements=ctx.names.elements_of(owners) if owners else [])
 
 
 @register("derivative_causality", "info",

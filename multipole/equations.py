@@ -276,8 +276,13 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             continue
         numeric = A.xreplace(analysis.flat.param_values())
         if not any(x.free_symbols for x in numeric) and sp.Matrix(numeric).det() == 0:
-            err = IllPosedError("singular_loop", "the algebraic loop for " + ", ".join(map(str, zs))
-                                + " is singular", "check the couplings of " + ", ".join(sorted(set(owners))))
+            from .checks import Names, listing
+            names = Names(analysis)
+            els = names.elements_of(owners)
+            err = IllPosedError("singular_loop", f"the algebraic loop through {', '.join(els)} is singular: it does "
+                                f"not determine {names.variables(zs)} uniquely",
+                                f"check the parameters of {listing(els)} (a loop gain or a resistance sum that is "
+                                "zero) or add a storage element to the loop")
             err.variables, err.owners = zs, owners      # for the check's wording (multipole.checks)
             raise err
         derivative = any(eqs[i].role == "differentiated" for i in members)
@@ -413,7 +418,8 @@ def _loops_at_start(eq: Equations) -> None:
         evaluate_blocks(eq, 0.0, eq.initial_values(), wanted)
     except LoopFailure as exc:
         b = exc.block
-        els = sorted({eq.analysis.flat.element_of(o) for o in b.owners})
+        from .checks import Names
+        els = Names(eq.analysis).elements_of(b.owners)
         err = IllPosedError("singular_loop", f"the nonlinear algebraic loop through {', '.join(els)} has no "
                             f"unique solution at t = 0 in the initial state: {exc.reason}",
                             f"give the massless part next to {els[0]} an inertia, or {els[0]} a law that is "

@@ -406,6 +406,8 @@ class _Writer:
         self.units = _units(eq)
         self._printed: dict = {}
         self._lines: dict = {}
+        self._folded: dict = {}
+        self.values = {p: float(v) for p, v in eq.params.items()}
 
     def locked(self, modes: dict | None):
         """Print in fixed switching modes (``modes``: switching function → index) or, with None, as
@@ -413,18 +415,29 @@ class _Writer:
         self.printer.modes = None if modes is None else {sp.sympify(g).xreplace(self.pvals): k
                                                            for g, k in modes.items()}
 
+    def fold(self, e):
+        """``e`` with the parameters replaced by their values (cached: the same expression is printed
+        in several functions)."""
+        folded = self._folded.get(e)
+        if folded is None:
+            folded = self._folded[e] = sp.sympify(e).xreplace(self.pvals)
+        return folded
+
     def P(self, e) -> str:
         e = sp.sympify(e)
         key = (e, self.printer.modes is not None)
         text = self._printed.get(key)
         if text is None:
-            folded = e.xreplace(self.pvals)
+            text = _plain(e, self.printer, self.values)
+        if text is None:
+            folded = self.fold(e)
             if folded.has(sp.zoo, sp.oo, sp.nan):
                 bad = sorted(str(p) for p in e.free_symbols if p in self.pvals and float(self.pvals[p]) == 0.0)
                 raise ModelError("infinite_value", f"the parameters make {e} infinite"
                                  + (f" ({', '.join(bad)} = 0)" if bad else ""),
                                  "a zero inertia, stiffness or resistance divides; use a node or a rigid coupling instead")
-            text = self._printed[key] = self.printer.doprint(folded)
+            text = self.printer.doprint(folded)
+        self._printed[key] = text
         return text
 
     def prologue(self, units, extra=()) -> list:
@@ -449,8 +462,10 @@ class _Writer:
     def assignment(self, name: str, expr) -> list:
         """``name = expr``; a large expression (the effective inertia of a mechanism, say) is split
         by common-subexpression elimination into temporaries ``_cN`` computed once."""
-        folded = sp.sympify(expr).xreplace(self.pvals)
-        if sp.count_ops(folded) <= CSE_MIN_OPS:
+        if _plain(sp.sympify(expr), self.printer, self.values) is not None:
+            return [f"    {name} = {self.P(expr)}"]
+        folded = self.fold(expr)
+        if _small(folded) or sp.count_ops(folded) <= CSE_MIN_OPS:
             return [f"    {name} = {self.P(expr)}"]
         self._cse_count = getattr(self, "_cse_count", 0) + 1
         temps, (reduced,) = sp.cse([folded], symbols=sp.numbered_symbols(f"_c{self._cse_count}_"))
@@ -503,7 +518,9 @@ class _Writer:
         col.update({u: {n + k: 1.0} for k, u in enumerate(inputs)})
 
         def combine(expr):
-            terms = _affine_terms(sp.sympify(expr).xreplace(self.pvals))
+            terms = _linear_form(sp.sympify(expr), self.values)
+            if terms is None:
+                terms = _affine_terms(self.fold(expr))
             if terms is None:
                 return None
             acc: dict = {}
@@ -602,6 +619,113 @@ class _Writer:
                     acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
                                                  else f"({self.P(d)})*{name}")
         return {j: " + ".join(acc[j]) for j in sorted(acc)}
+
+
+def _const(e, values: dict) -> float | None:
+    """Value of a float, a parameter or one over a parameter (nonzero, finite), else None."""
+    if e.is_Float:
+        v = float(e)
+    elif e.is_Symbol and e in values:
+        v = values[e]
+    elif e.is_Pow and e.exp is sp.S.NegativeOne and e.base.is_Symbol and values.get(e.base):
+        v = 1.0 / values[e.base]
+    else:
+        return None
+    return v if v != 0.0 and math.isfinite(v) else None
+
+
+def _term(e, printer, values: dict) -> str | None:
+    """``e`` as code if it is a variable, a constant (see :func:`_const`), or a constant times a
+    variable (-1 included), else None.  The parameters' values are printed as sympy would print the
+    folded expression, with the same float products."""
+    if e.is_Symbol and e not in values:
+        return printer._print_Symbol(e)
+    c = _const(e, values)
+    if c is not None:
+        return printer._print_Float(c)
+    if e.is_Mul and len(e.args) == 2:
+        for c, w in (e.args, e.args[::-1]):
+            if w.is_Symbol and w not in values:
+                if c is sp.S.NegativeOne:
+                    return "-" + printer._print_Symbol(w)
+                v = _const(c, values)
+                if v is not None:
+                    return f"{printer._print_Float(v)}*{printer._print_Symbol(w)}"
+    return None
+
+
+def _plain(e, printer, values: dict) -> str | None:
+    """Code of the most common expressions of a network (a port variable, a constant times one, the
+    sum or difference of two such terms) without folding the parameters in and without sympy's
+    printer (both build sympy objects: about 0.5 ms per expression); None for anything else.  Two
+    terms are exact in either order."""
+    text = _term(e, printer, values)
+    if text is not None or not (e.is_Add and len(e.args) == 2):
+        return text
+    a, b = (_term(x, printer, values) for x in e.args)
+    if a is None or b is None:
+        return None
+    return f"{a} - {b[1:]}" if b.startswith("-") else f"{a} + {b}"
+
+
+def _small(expr) -> bool:
+    """True if ``expr`` certainly has at most :data:`CSE_MIN_OPS` operations: at most a third as
+    many tree nodes (``count_ops`` counts at most about three operations per node, e.g. a negative
+    rational: a division, a negation and its product), found without walking a large tree whole."""
+    limit = CSE_MIN_OPS // 3
+    for k, _ in enumerate(sp.preorder_traversal(expr)):
+        if k >= limit:
+            return False
+    return True
+
+
+def _linear_form(expr, values: dict):
+    """``[(symbol or None, coefficient)]`` with ``expr == Σ coefficient·symbol`` once the parameter
+    symbols (keys of ``values``) take their values, found by one walk of the tree (no expansion);
+    None where ``expr`` is not evidently such a sum (the caller then expands)."""
+    form = _form(expr, values)
+    if form is None or not all(math.isfinite(c) for c in form.values()):
+        return None
+    return list(form.items())
+
+
+def _form(e, values: dict):
+    """``{symbol or None: coefficient}`` of a linear form ``e`` (see :func:`_linear_form`)."""
+    if e.is_Number:
+        return {None: float(e)}
+    if e.is_Symbol:
+        return {None: values[e]} if e in values else {e: 1.0}
+    if e.is_Add:
+        acc: dict = {}
+        for a in e.args:
+            f = _form(a, values)
+            if f is None:
+                return None
+            for k, v in f.items():
+                acc[k] = acc.get(k, 0.0) + v
+        return acc
+    if e.is_Mul:
+        scale, var_part = 1.0, None
+        for a in e.args:
+            f = _form(a, values)
+            if f is None:
+                return None
+            if set(f) == {None}:
+                scale *= f[None]
+            elif var_part is None:
+                var_part = f
+            else:
+                return None           # a product of two non-constant factors
+        return {None: scale} if var_part is None else {k: scale * v for k, v in var_part.items()}
+    if e.is_Pow:
+        base, ex = _form(e.base, values), _form(e.exp, values)
+        if base is None or ex is None or set(base) != {None} or set(ex) != {None}:
+            return None
+        try:
+            return {None: float(base[None] ** ex[None])}
+        except (ZeroDivisionError, OverflowError, TypeError):
+            return None
+    return None
 
 
 def _affine_terms(expr):

@@ -391,18 +391,51 @@ class _Analyser:
     def jacobians(self, eq_ids, alg, stvars):
         exprs = [self.equations[i].expr for i in eq_ids]
         syms = set().union(*(e.free_symbols for e in exprs)) | set(alg) | set(stvars)
-        d_alg = [[sp.diff(e, v) for v in alg] for e in exprs]
-        d_st = [[sp.diff(e, v) for v in stvars] for e in exprs]
-        out = []
-        for pt in self.sample_points(syms):
-            def num(x):
+        wrt = list(alg) + list(stvars)
+        present = [e.free_symbols for e in exprs]
+        entries = [sp.sympify(sp.diff(e, v)) if v in fs else sp.Integer(0) for e, fs in zip(exprs, present) for v in wrt]
+        pts = self.sample_points(syms)
+        values = self.sample_values(entries, pts).reshape(len(pts), len(exprs), len(wrt))
+        return [(M[:, :len(alg)], M[:, len(alg):]) for M in values]
+
+    @staticmethod
+    def sample_values(entries, pts) -> np.ndarray:
+        """``entries`` (sympy expressions) at every sample point, shape ``(len(pts), len(entries))``:
+        numbers directly, the others through one generated function per call (sympy's evaluation of
+        each entry at each point is what made the check of large stacks slow); an entry that cannot
+        be evaluated so is evaluated by sympy, and one that sympy cannot evaluate either is NaN."""
+        out = np.full((len(pts), len(entries)), np.nan)
+        symbolic = []
+        for k, x in enumerate(entries):
+            if x.is_number:
                 try:
-                    return complex(sp.sympify(x).xreplace(pt).evalf()).real
+                    out[:, k] = complex(x).real
                 except (TypeError, ValueError):
-                    return np.nan
-            Ja = np.array([[num(x) for x in row] for row in d_alg], dtype=float).reshape(len(exprs), len(alg))
-            Js = np.array([[num(x) for x in row] for row in d_st], dtype=float).reshape(len(exprs), len(stvars))
-            out.append((Ja, Js))
+                    pass
+            else:
+                symbolic.append(k)
+        if not symbolic:
+            return out
+        free = sorted(set().union(*(entries[k].free_symbols for k in symbolic)), key=lambda v: v.name)
+        try:
+            fn = sp.lambdify(free, [entries[k] for k in symbolic], "numpy")
+        except Exception:          # noqa: BLE001 -- a function numpy does not know: sympy below
+            fn = None
+        for row, pt in zip(out, pts):
+            try:
+                if fn is None:
+                    raise TypeError
+                with np.errstate(all="ignore"):
+                    vals = np.array([complex(v).real for v in fn(*[float(pt[v]) for v in free])], dtype=float)
+                if not np.all(np.isfinite(vals)):
+                    raise ValueError
+                row[symbolic] = vals
+            except (TypeError, ValueError, ArithmeticError, KeyError, NameError):
+                for k in symbolic:
+                    try:
+                        row[k] = complex(entries[k].xreplace(pt).evalf()).real
+                    except (TypeError, ValueError):
+                        pass
         return out
 
     @staticmethod

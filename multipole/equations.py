@@ -208,8 +208,16 @@ def linear_coefficient(expr, v):
             if v in a.free_symbols:
                 return None
             return a, sp.expand(expr - a * v)
-        coeffs.append(sp.Mul(*[f for f in factors if f != v]))
-    return sp.Add(*coeffs), sp.Add(*rest)
+        coeffs.append(_subset(sp.Mul, [f for f in factors if f != v], sp.S.One))
+    return sp.Add(*coeffs), _subset(sp.Add, rest, sp.S.Zero)
+
+
+def _subset(cls, args, empty):
+    """``cls(*args)`` for ``args`` taken, in order, from one sum or product: already in canonical
+    form, so it is not built again through sympy's flattening (the cost of a large assemble)."""
+    if not args:
+        return empty
+    return args[0] if len(args) == 1 else cls._from_args(args)
 
 
 def _solve_single(expr, v):
@@ -398,13 +406,28 @@ def _newton_block(b: Block, values: dict):
             J = fprime(z)
         if not np.all(np.isfinite(J)):
             continue
-        norms = np.linalg.norm(J, axis=0)
-        sv = np.linalg.svd(J / np.where(norms > 0, norms, 1.0), compute_uv=False)
-        if norms.min() == 0 or sv.min() <= 1e-12 * sv.max():
-            raise LoopFailure(b, "its Jacobian is singular there, so the loop leaves its unknowns undetermined")
+        if _singular(J):
+            # an isolated root may have a singular Jacobian (e = d·f·|f| at f = 0); a loop that stays
+            # singular all around the solution does not determine its unknowns (a continuum of roots)
+            around = [z + rng.normal(scale=max(1.0, float(np.abs(z).max())), size=n) for _ in range(3)]
+            with np.errstate(all="ignore"):
+                if all(_singular(fprime(w)) for w in around):
+                    raise LoopFailure(b, "its equations do not depend on its unknowns there, so the loop leaves "
+                                      "them undetermined")
         return z
     raise LoopFailure(b, "its equations have no solution there (Newton's method converged from none of "
                       f"{len(starts)} starts)")
+
+
+def _singular(J) -> bool:
+    """True for a Jacobian with a zero column or rank deficient after scaling its columns."""
+    if not np.all(np.isfinite(J)):
+        return False
+    norms = np.linalg.norm(J, axis=0)
+    if norms.min() == 0:
+        return True
+    sv = np.linalg.svd(J / norms, compute_uv=False)
+    return bool(sv.min() <= 1e-12 * sv.max())
 
 
 def _loops_at_start(eq: Equations) -> None:
@@ -531,7 +554,7 @@ def _available(analysis: Analysis) -> dict:
 
     def rep(name):
         r, sign = analysis.aliases[var(name)]
-        return sign * r
+        return r if sign == 1 else -r
     for path, pp in [(pp, pp) for pp in flat.port_domains] + list(flat.external_ports.items()):
         dom = flat.port_domains[pp]
         for k, unit in (("e", dom.effort_unit), ("f", dom.flow_unit)):

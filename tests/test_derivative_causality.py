@@ -161,3 +161,25 @@ def test_massless_pinion_with_coulomb_teeth_is_refused_when_its_loop_has_no_solu
     res = run(MASSLESS_PINION.replace("DAMPING", "100.0"))
     assert res.t[-1] == pytest.approx(0.02) and np.all(np.isfinite(res["wheel.omega"]))
     assert res["wheel.omega"][-1] < 0 < res["mesh.force"][-1]       # the wheel turns the other way
+
+
+def test_an_isolated_singular_root_of_a_loop_is_not_refused():
+    """A quadratic damper e = d·f·|f| computes its flow by Newton's method; at t = 0 the torque is 0,
+    so the root f = 0 has a singular Jacobian, but it is the only root (the loop is singular only
+    there): the equations are built, no singular_loop."""
+    text = """
+    name: quadratic_damper
+    elements:
+      src: {type: torque_source, value: "t"}
+      j:   {type: inertia, J: 0.01}
+      spr: {type: spring, c: 100.0}
+      dmp: {type: damper, law: "0.5*f*abs(f)"}
+      gnd: {type: ground}
+    connections:
+      - [src.p, j.a]
+      - [j.b, spr.a]
+      - [spr.b, dmp.a]
+      - [dmp.b, gnd.p]
+    """
+    eq = pipeline.equations(scene(text))
+    assert any(b.kind == "newton" for b in eq.blocks)

@@ -123,7 +123,7 @@ class Analysis:
     def substitute(self, expr) -> sp.Expr:
         """Rewrite an expression of port variables in representatives."""
         if self._alias_map is None:
-            self._alias_map = {v: s * r for v, (r, s) in self.aliases.items() if v != r}
+            self._alias_map = _alias_substitution(self.aliases)
         return sp.sympify(expr).xreplace(self._alias_map)
 
     def computed_by(self, variable: sp.Symbol) -> str:
@@ -160,6 +160,11 @@ def _alias_pair(expr, port_vars):
     if abs(c1) != abs(c2) or x == y:
         return None
     return x, y, int(-c2 / c1)
+
+
+def _alias_substitution(aliases: dict) -> dict:
+    """``{variable: ±representative}`` for every variable that is not its own representative."""
+    return {v: r if s == 1 else -r for v, (r, s) in aliases.items() if v != r}
 
 
 class _UnionFind:
@@ -281,7 +286,7 @@ class _Analyser:
             if residual:                # x = -x: the variable is forced to zero
                 eqs.append(Equation(pair[0], eq.owner, eq.role, None, eq.note + " (closes a loop)"))
         self.aliases = {v: uf.find(v) for v in port_vars}
-        subs = {v: s * r for v, (r, s) in self.aliases.items() if v != r}
+        subs = _alias_substitution(self.aliases)
         self.equations = []
         for eq in eqs:
             e = eq.expr.xreplace(subs)

@@ -40,11 +40,17 @@ class Linearization:
                           outputs=clean(self.outputs))
 
     def modes(self) -> list[tuple[complex, float, float]]:
-        """(eigenvalue [1/s], natural frequency [Hz], damping ratio) sorted by frequency."""
+        """(eigenvalue [1/s], natural frequency [Hz], damping ratio) sorted by frequency.
+
+        Parts below rounding of the largest eigenvalue (1e-12 of it) are set to zero, so a
+        rigid-body mode reads 0 (not 1e-51 Hz) and an undamped one has zeta = 0."""
         out = []
-        for lam in np.linalg.eigvals(self.A) if self.A.size else []:
+        lams = np.linalg.eigvals(self.A) if self.A.size else np.zeros(0)
+        tiny = 1e-12 * (np.abs(lams).max() if lams.size else 0.0)
+        for lam in lams:
+            lam = complex(lam.real if abs(lam.real) > tiny else 0.0, lam.imag if abs(lam.imag) > tiny else 0.0)
             wn = abs(lam)
-            zeta = -lam.real / wn if wn > 0 else 1.0
+            zeta = (-lam.real / wn if wn > 0 else 1.0) + 0.0     # + 0.0: no "-0"
             out.append((complex(lam), wn / (2 * np.pi), zeta))
         return sorted(out, key=lambda m: (m[1], m[0].imag))
 

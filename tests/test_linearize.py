@@ -95,6 +95,10 @@ def test_rigid_gear_between_inertias_and_a_spring_rings_at_the_closed_form(mesh,
     assert np.allclose(_frequencies(lin), [w], rtol=1e-9)
     lam = np.linalg.eigvals(lin.A)
     assert np.sum(np.abs(lam) <= 1e-9 * w) == len(lam) - 2        # the rest is the rigid-body mode
+    modes = lin.modes()                   # reported without round-off: rigid-body 0 Hz, no damping
+    assert [m[1] for m in modes[:-2]] == [0.0] * (len(lam) - 2)
+    assert [m[2] for m in modes[-2:]] == [0.0, 0.0]
+    assert modes[-1][1] == pytest.approx(w / (2 * np.pi), rel=1e-9)
 
 
 def test_many_layer_stack_rings_at_the_series_compliance():

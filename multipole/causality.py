@@ -37,6 +37,7 @@ import sympy as sp
 from .diagnostics import run_checks
 from .network import Equation, FlatNetwork, State, var
 from .primitives import T
+from .stages import bulk
 
 _ROLE_RANK = {"storage": 0, "law": 0, "source": 0}
 
@@ -777,6 +778,7 @@ class _Rates:
             w = v
 
 
+@bulk
 def analyse(flat: FlatNetwork, diagnose: bool = True) -> Analysis:
     """Run the causality analysis on a flat network.
 

@@ -19,6 +19,7 @@ from sympy.printing.pycode import PythonCodePrinter
 from .equations import Equations, linear_coefficient
 from .errors import ModelError, NewtonError
 from .primitives import T
+from .stages import bulk
 
 
 def _residual(fun, z):
@@ -809,6 +810,7 @@ def generate(eq: Equations, outputs=()) -> str:
 _CACHE: dict = {}
 
 
+@bulk
 def compile_model(eq: Equations, outputs=()) -> Model:
     """Generate, compile (cached by source hash) and wrap the model functions."""
     source = generate(eq, outputs)

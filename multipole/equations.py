@@ -27,6 +27,7 @@ from .diagnostics import Diagnostic
 from .errors import IllPosedError, ModelError
 from .network import var
 from .primitives import T
+from .stages import bulk
 
 #: linear loops up to this size are solved symbolically
 SYMBOLIC_LIMIT = 8
@@ -243,6 +244,7 @@ def _solve_linear(residuals, zs):
     return A, b
 
 
+@bulk
 def assemble(analysis: Analysis, name: str = "model") -> Equations:
     """Order and solve the assigned equations; raise :class:`IllPosedError` if not well-posed."""
     if not analysis.ok:

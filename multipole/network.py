@@ -20,7 +20,8 @@ import sympy as sp
 
 from .domains import Domain
 from .errors import ModelError
-from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive, Relation
+from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive, Relation, negative, plain_sum
+from .stages import bulk
 
 
 @lru_cache(maxsize=None)
@@ -301,12 +302,12 @@ class _Flattener:
             self.flat.graph.add_edge(node.name, p.rsplit(".", 1)[0], port=p)
         common, summed = ("f", "e") if dom.node_kind == "b" else ("e", "f")
         first = var(f"{pps[0]}.{common}")
-        minus_first = sp.Mul(sp.S.NegativeOne, first, evaluate=False)
+        minus_first = negative(first)
         for p in pps[1:]:
-            self.flat.equations.append(Equation(sp.Add(var(f"{p}.{common}"), minus_first, evaluate=False),
+            self.flat.equations.append(Equation(plain_sum((var(f"{p}.{common}"), minus_first)),
                                                 node.name, "node", None,
                                                 "common " + ("speed" if common == "f" else "effort")))
-        self.flat.equations.append(Equation(sp.Add(*[var(f"{p}.{summed}") for p in pps], evaluate=False), node.name,
+        self.flat.equations.append(Equation(plain_sum(var(f"{p}.{summed}") for p in pps), node.name,
                                             "node", None, "balance at the node"))
 
     def terminate(self):
@@ -380,6 +381,7 @@ class _NetVars:
         return self.fl.flat.quantities[_join(self.path, ref)][0]
 
 
+@bulk
 def flatten(root: Network) -> FlatNetwork:
     """Flatten ``root`` (a scene) into its primitive graph and equations."""
     fl = _Flattener()

@@ -80,6 +80,19 @@ class Primitive:
         return f"{self.kind}({', '.join(self.ports)})"
 
 
+def plain_sum(terms) -> sp.Expr:
+    """The sum of ``terms`` (sympy symbols or products, none zero) as written, not simplified: one
+    per node or junction, so built from its arguments directly (sympy's unevaluated ``Add`` costs
+    about six times as much: it sympifies and caches every argument)."""
+    terms = tuple(terms)
+    return terms[0] if len(terms) == 1 else sp.Add._from_args(terms)
+
+
+def negative(x) -> sp.Expr:
+    """``-x`` for a symbol ``x``, as written (see :func:`plain_sum`)."""
+    return sp.Mul._from_args((sp.S.NegativeOne, x))
+
+
 def _sym(value) -> sp.Expr:
     return value if isinstance(value, sp.Basic) else sp.sympify(float(value))
 
@@ -235,14 +248,14 @@ class Junction(Primitive):
 
         def signed(kind, p):
             x = get[kind](p)
-            return x if sig[p] == 1 else sp.Mul(sp.S.NegativeOne, x, evaluate=False)
+            return x if sig[p] == 1 else negative(x)
 
         def minus(x):
-            return x.args[1] if isinstance(x, sp.Mul) else sp.Mul(sp.S.NegativeOne, x, evaluate=False)
+            return x.args[1] if isinstance(x, sp.Mul) else negative(x)
         first = signed(common, names[0])
-        rel = [Relation(sp.Add(signed(common, p), minus(first), evaluate=False), "constraint", None,
+        rel = [Relation(plain_sum((signed(common, p), minus(first))), "constraint", None,
                         f"common {'flow' if common == 'f' else 'effort'}") for p in names[1:]]
-        rel.append(Relation(sp.Add(*[signed(summed, p) for p in names], evaluate=False), "constraint", None,
+        rel.append(Relation(plain_sum(signed(summed, p) for p in names), "constraint", None,
                             f"{'efforts' if summed == 'e' else 'flows'} sum to zero"))
         return rel
 

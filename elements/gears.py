@@ -41,6 +41,7 @@ from multipole import (LAW_Q, TF, C, ElementType, ModelError, Network, Param, Pr
 from .basic import inertia
 
 LEVELS = ("ideal", "elastic", "normal")
+MAX_STAGES = 10     # longest gear_train a netlist may ask for (checked by the loader)
 
 _R1, _R2, _C, _CN, _D, _X0 = (sp.Symbol(n) for n in ("r1", "r2", "c", "c_n", "d", "x0"))
 _Z1, _PHASE0, _ALPHA = (sp.Symbol(n) for n in ("z1", "phase0", "alpha"))
@@ -386,8 +387,10 @@ register(ElementType(
     "gear_train", lambda **kw: gear_train(**kw),
     "spur stages in series (lists r1, r2; shared level, c, d); overall ratio = product of the stage ratios",
     {"a": "input shaft (rotational)", "b": "output shaft (rotational)"},
-    [Param("r1", "m", "pitch radii of the driving wheels, one per stage", kind="numbers", positive=True),
-     Param("r2", "m", "pitch radii of the driven wheels, one per stage", kind="numbers", positive=True),
+    [Param("r1", "m", "pitch radii of the driving wheels, one per stage", kind="numbers", positive=True,
+           max_items=MAX_STAGES),
+     Param("r2", "m", "pitch radii of the driven wheels, one per stage", kind="numbers", positive=True,
+           max_items=MAX_STAGES),
      Param("level", "", "ideal or elastic (all stages)", "ideal", "choice", ("ideal", "elastic")),
      Param("internal", "", "all stages internal meshes", False, "bool"),
      Param("c", "N/m", "elastic: mesh stiffness of every stage, " + _LAW_DOC, None, "law", law_var="q",

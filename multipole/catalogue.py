@@ -37,6 +37,7 @@ class Param:
     nonnegative: bool = False         # >= 0 (a literal 0 leaves the part out: massless rotor, ...)
     nonzero: bool = False             # != 0 (ratios of transformers and gears)
     maximum: float | None = None      # largest accepted value (counts of repeated elements)
+    max_items: int | None = None      # longest accepted list (kind numbers: stages of repeated parts)
 
     @property
     def required(self) -> bool:
@@ -48,6 +49,8 @@ class Param:
         rules = ["> 0"] * self.positive + [">= 0"] * self.nonnegative + ["!= 0"] * self.nonzero
         if self.maximum is not None:
             rules.append(f"<= {self.maximum:g}")
+        if self.max_items is not None:
+            rules.append(f"at most {self.max_items} values")
         return ", ".join(rules)
 
     def problem(self, value: float) -> str:

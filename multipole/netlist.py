@@ -492,9 +492,11 @@ class _Builder:
                 raise self.err("bad_value", f"{what} must be a list of port names", line=line, element=element)
             return list(value)
         if p.kind == "numbers":
-            if not isinstance(value, list) or len(value) > MAX_LIST:
-                raise self.err("bad_value", f"{what} must be a list of at most {MAX_LIST} numbers",
-                               line=line, element=element)
+            longest = p.max_items or MAX_LIST
+            if not isinstance(value, list) or len(value) > longest:
+                raise self.err("bad_value", f"{what} must be a list of at most {longest} numbers",
+                               "the limit keeps checking and simulating quick (docs/netlist.md, Limits)",
+                               line, element)
             out = []
             for v in value:
                 expr = self.expr(v, symbols, what, line, element)

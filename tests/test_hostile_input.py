@@ -356,3 +356,11 @@ class TestSimulateOptions:
         assert result.t[-1] == pytest.approx(0.05, rel=1e-12) and len(result.t) > 2
         # torque 1 N*m on J = 0.5 kg*m^2 from rest: p = t
         assert result.states[-1, 0] == pytest.approx(0.05, rel=1e-6)
+
+
+def test_gear_train_stage_count():
+    from elements.gears import MAX_STAGES
+    radii = ", ".join(["0.01"] * (MAX_STAGES + 1))
+    err = refused(netlist_text(extra=f"g: {{type: gear_train, r1: [{radii}], r2: [{radii}]}}"), "bad_value",
+                  EXTRA_LINE, "g")
+    assert f"at most {MAX_STAGES}" in err.message

@@ -488,8 +488,10 @@ class _Builder:
                 raise self.err("bad_value", f"{what} must be true or false", line=line, element=element)
             return value
         if p.kind == "names":
-            if not isinstance(value, list) or not all(isinstance(v, str) and _NAME.match(v) for v in value):
-                raise self.err("bad_value", f"{what} must be a list of port names", line=line, element=element)
+            if not isinstance(value, list) or len(value) > MAX_LIST or \
+                    not all(isinstance(v, str) and _NAME.match(v) for v in value):
+                raise self.err("bad_value", f"{what} must be a list of at most {MAX_LIST} port names",
+                               line=line, element=element)
             return list(value)
         if p.kind == "numbers":
             longest = p.max_items or MAX_LIST

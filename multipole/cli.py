@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import warnings
@@ -18,7 +17,7 @@ from pathlib import Path
 from . import pipeline
 from .catalogue import catalogue
 from .errors import IllPosedError, MultipoleError, MultipoleWarning, RunError
-from .netlist import load
+from .netlist import load, validate_simulate_options
 
 #: exit status after Ctrl-C (128 + SIGINT, as shells report it)
 EXIT_INTERRUPTED = 130
@@ -99,16 +98,10 @@ def check_output_path(path: str | None, formats=None, option: str = "--out") -> 
 
 
 def _check_numbers(args) -> None:
-    """Refuse bad numbers given on the command line before any work: ``--t-end``, ``--dt-out``,
-    ``--atol`` must be positive and finite, ``--rtol`` in (0, 1)."""
-    for option, value in (("--t-end", args.t_end), ("--dt-out", args.dt_out), ("--rtol", args.rtol),
-                          ("--atol", args.atol)):
-        if value is None:
-            continue
-        if not math.isfinite(value) or value <= 0 or (option == "--rtol" and value >= 1):
-            wanted = "between 0 and 1, e.g. 1e-6" if option == "--rtol" else "a positive finite number"
-            raise MultipoleError("bad_option", f"{option} {value:g}: must be {wanted}",
-                                 f"e.g. {option} {dict(rtol=1e-6, atol=1e-9).get(option[2:], 0.01):g}")
+    """Refuse bad numbers given on the command line before any work (``--t-end``, ``--dt-out``,
+    ``--rtol``, ``--atol``), with the loader's rules for the ``simulate:`` options."""
+    validate_simulate_options({"t_end": args.t_end, "dt_out": args.dt_out, "rtol": args.rtol, "atol": args.atol},
+                              "command line")
 
 
 def _located(exc: MultipoleError, scene) -> MultipoleError:

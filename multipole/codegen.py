@@ -488,7 +488,7 @@ class _Writer:
             rows = ", ".join("[" + ", ".join(P(b.matrix[i, j]) for j in range(n)) + "]" for i in range(n))
             return [f"    _A = np.array([{rows}])", f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
                     f"{lhs} np.linalg.solve(_A, _b).tolist()"]
-        Jz = sp.Matrix(b.residuals).jacobian(zs)
+        Jz = _jacobian(b.residuals, zs)
         k = u.block
         if n == 1:
             return [f"    def _blk{k}({N[zs[0]]}):", f"        return ({P(b.residuals[0])}, {P(Jz[0, 0])})",
@@ -591,7 +591,7 @@ class _Writer:
             if not cols:
                 continue
             n, js = len(zs), sorted(cols)
-            Jz = sp.Matrix(b.residuals).jacobian(zs)
+            Jz = _jacobian(b.residuals, zs)
             rows = ", ".join("[" + ", ".join(self.P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
             out += [f"    _Jz = np.array([{rows}])", f"    _G = np.zeros(({n}, {len(js)}))"]
             out += [f"    _G[{r_i}, {c}] = {code}" for c, j in enumerate(js) for r_i, code in cols[j].items()]
@@ -747,6 +747,17 @@ def _affine_terms(expr):
         else:
             return terms
     return None
+
+
+def _jacobian(residuals, zs) -> sp.Matrix:
+    """d residuals / d zs, differentiating each residual only by the unknowns it contains (a loop
+    of k unknowns whose equations each hold a few of them: O(k) derivatives, not k²)."""
+    col = {z: j for j, z in enumerate(zs)}
+    J = sp.zeros(len(residuals), len(zs))
+    for i, r in enumerate(residuals):
+        for z in r.free_symbols & col.keys():
+            J[i, col[z]] = _diff(r, z)
+    return J
 
 
 def _diff(expr, w):

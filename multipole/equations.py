@@ -285,7 +285,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res, kept[0]))
             continue
         numeric = A.xreplace(analysis.flat.param_values())
-        if not any(x.free_symbols for x in numeric) and sp.Matrix(numeric).det() == 0:
+        if not any(x.free_symbols for x in numeric) and _singular_matrix(numeric):
             from .checks import Names, listing
             names = Names(analysis)
             els = names.elements_of(owners)
@@ -419,6 +419,21 @@ def _newton_block(b: Block, values: dict):
         return z
     raise LoopFailure(b, "its equations have no solution there (Newton's method converged from none of "
                       f"{len(starts)} starts)")
+
+
+def _singular_matrix(A) -> bool:
+    """True if the numeric square matrix ``A`` (sympy numbers) is singular: its rank in floating
+    point is short of its size (numpy's SVD; sympy's exact determinant is O(k³) in sympy objects,
+    minutes for a loop of a few hundred unknowns)."""
+    M = np.array(A.tolist(), dtype=float)
+    if not np.all(np.isfinite(M)):
+        return True
+    for axis in (1, 0):                # equilibrate: loops mix units (1e-9 m/V beside 1e7 N/m)
+        scale = np.abs(M).max(axis=axis, keepdims=True)
+        if np.any(scale == 0):
+            return True
+        M = M / scale
+    return np.linalg.matrix_rank(M) < M.shape[0]
 
 
 def _singular(J) -> bool:

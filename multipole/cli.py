@@ -282,6 +282,8 @@ def main(argv=None) -> int:
         elif not isinstance(exc, MultipoleError):   # arithmetic outside the simulation loop
             exc = RunError("arithmetic_error", f"{args.command} failed: {type(exc).__name__}: {exc}",
                            "check the expressions and parameters", getattr(args, "file", ""))
+        if not exc.where and isinstance(getattr(args, "file", None), str):
+            exc.where = args.file        # at least the file, where the stage did not know it
         if getattr(args, "json", False):
             print(json.dumps({"file": args.file, "exit_code": exc.exit_code, "well_posed": False,
                               "error": {"code": exc.code, "message": exc.message, "where": exc.where,

@@ -525,6 +525,14 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
                 where = f"{name} = {code if len(code) <= 80 else code[:77] + '...'}"
             element = element_of(name)
             break
+    frame = frames[-1][0]
+    if element is None and frame.f_code.co_name != "values" and "x" in frame.f_locals:
+        try:              # a switching function or output written inline: the variable it reads fails
+            model.values(frame.f_locals.get("t", 0.0), frame.f_locals["x"])
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as again:
+            inner = model_failure(model, again)
+            if inner is not None and inner.element:
+                return inner
     where = where or function or "the model"
     when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
     if isinstance(exc, NewtonError):
@@ -773,6 +781,12 @@ def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> t
     for start in range(0, len(t_all), 4096):
         ts = t_all[start:start + 4096]
         vals = np.array([np.asarray(g(tt), dtype=float)[ks] for tt in ts]).reshape(len(ts), len(ks))
+        if not np.all(np.isfinite(vals)):          # compiled code gives NaN/inf where Python raises
+            i, j = np.argwhere(~np.isfinite(vals))[0]
+            name = texts[ks[j]] if texts is not None else f"switching function {ks[j]}"
+            raise SimulationError("not_finite", f"the switching function {name} is {vals[i, j]} at t = {ts[i]:.6g} s",
+                                  "check the expression's domain at that time (root or logarithm of a negative "
+                                  "number, division by zero)")
         signs = np.sign(vals)
         for j, k in enumerate(ks):
             nz = np.nonzero(signs[:, j])[0]

@@ -121,6 +121,21 @@ def test_arithmetic_failures_are_one_line_naming_element_and_time(tmp_path, caps
     assert words in line
 
 
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_a_switching_function_outside_its_domain_is_one_line(tmp_path, capsys, backend):
+    """abs(sqrt(t - 0.01)) is a switching function of time alone, undefined before t = 0.01 s."""
+    if backend == "numba":
+        pytest.importorskip("numba")
+    path = braked(tmp_path, "abs(sqrt(t - 0.01))")
+    assert main(["simulate", path, "--quiet", "--backend", backend]) == 3
+    line = one_error_line(capsys)
+    assert "at t = 0 s" in line and "sqrt(t - 0.01)" in line
+    if backend == "numpy":           # Python raises in the line that computes the source's value
+        assert line.startswith(f"error[arithmetic_error] {path}:3 element 'src': ")
+    else:                            # compiled code gives NaN, found where the switches are scheduled
+        assert line.startswith("error[not_finite] ")
+
+
 def test_a_failure_during_the_run_names_the_time_it_happened(tmp_path, capsys):
     """omega' = -sqrt(omega) from omega(0) = 1: omega = (1 - t/2)^2 reaches 0 at t = 2 s, after which
     the root of a negative speed is undefined."""

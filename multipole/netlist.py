@@ -211,8 +211,13 @@ def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
         line = f":{mark.line + 1}" if mark else ""
         raise NetlistError("yaml_syntax", f"invalid YAML: {exc.problem or exc.context}", "fix the YAML syntax",
                            f"{filename}{line}") from None
+    except yaml.reader.ReaderError as exc:      # a control character: name it and its line
+        line = text[:exc.position].count("\n") + 1
+        raise NetlistError("yaml_syntax", f"invalid YAML: character #x{exc.character:04x} is not allowed "
+                           "in YAML text", "remove the control character", f"{filename}:{line}") from None
     except yaml.YAMLError as exc:
-        raise NetlistError("yaml_syntax", f"invalid YAML: {exc}", "fix the YAML syntax", filename) from None
+        raise NetlistError("yaml_syntax", f"invalid YAML: {' '.join(str(exc).split())}", "fix the YAML syntax",
+                           filename) from None
     except NetlistError as exc:          # raised while reading: ``where`` holds ":line"
         exc.where = filename + exc.where
         raise

@@ -282,6 +282,10 @@ class TestLoaderValues:
             load(path)
         assert exc.value.code == "not_utf8" and exc.value.where == f"{path}:2"
 
+    @pytest.mark.parametrize("char", ["\x00", "\x07", "\x1b"])
+    def test_control_characters(self, char):
+        refused(netlist_text().replace("name: probe", f"name: probe\ndescription: 'a{char}b'"), "yaml_syntax", 2)
+
     @pytest.mark.parametrize("formula", ["sqrt(-1)", "log(-2)", "(-8)**(1/3)", "acos(2)", "2*sqrt(-1)*t"])
     def test_complex_constants(self, formula):
         refused(netlist_text(extra=f"m: {{type: torque_source, value: '{formula}'}}"), "complex_value", EXTRA_LINE, "m")

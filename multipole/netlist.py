@@ -307,6 +307,8 @@ class _Builder:
             raise self.err("too_large", f"{len(d['elements'])} elements (limit {MAX_ELEMENTS})",
                            "split the scene or use elements that repeat a part (e.g. piezo_stack n)",
                            d.lines.get("elements"))
+        if isinstance(d.get("name"), int) and not isinstance(d["name"], bool):
+            d["name"] = str(d["name"])                      # name: 2024
         if "name" in d and not (isinstance(d["name"], str) and _SCENE_NAME.match(d["name"])):
             raise self.err("bad_name", f"scene name {str(d['name'])[:40]!r} may use letters, digits, spaces and _ . + -",
                            "e.g. name: gear_stage", d.lines.get("name"))

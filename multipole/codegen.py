@@ -485,18 +485,31 @@ class _Writer:
         n = len(zs)
         lhs = f"    {', '.join(N[z] for z in zs)}, ="
         if u.kind == "linear":
-            rows = ", ".join("[" + ", ".join(P(b.matrix[i, j]) for j in range(n)) + "]" for i in range(n))
-            return [f"    _A = np.array([{rows}])", f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
-                    f"{lhs} np.linalg.solve(_A, _b).tolist()"]
+            return self.matrix_lines("_A", b.matrix) + [f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
+                                                        f"{lhs} np.linalg.solve(_A, _b).tolist()"]
         Jz = _jacobian(b.residuals, zs)
         k = u.block
         if n == 1:
             return [f"    def _blk{k}({N[zs[0]]}):", f"        return ({P(b.residuals[0])}, {P(Jz[0, 0])})",
                     f"    {N[zs[0]]} = newton(_blk{k}, _guess, {k}, _stats, scalar=True)"]
-        rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
-        return [f"    def _blk{k}(_z):", f"        {', '.join(N[z] for z in zs)}, = _z.tolist()",
-                f"        return (np.array([{', '.join(P(r) for r in b.residuals)}]), np.array([{rows}]))",
-                f"{lhs} newton(_blk{k}, _guess, {k}, _stats).tolist()"]
+        residuals = f"np.array([{', '.join(P(r) for r in b.residuals)}])"
+        if n <= DENSE_MAX_UNKNOWNS:
+            rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
+            body = [f"        return ({residuals}, np.array([{rows}]))"]
+        else:
+            body = self.matrix_lines("_Jz", Jz, "        ") + [f"        return ({residuals}, _Jz)"]
+        return [f"    def _blk{k}(_z):", f"        {', '.join(N[z] for z in zs)}, = _z.tolist()"] + body + \
+            [f"{lhs} newton(_blk{k}, _guess, {k}, _stats).tolist()"]
+
+    def matrix_lines(self, name: str, M, indent: str = "    ") -> list:
+        """``name = M`` as code: a literal array up to :data:`DENSE_MAX_UNKNOWNS` rows, else zeros and
+        one assignment per nonzero entry (a loop of k unknowns has O(k) of its k² entries)."""
+        r, c = M.shape
+        if r <= DENSE_MAX_UNKNOWNS:
+            rows = ", ".join("[" + ", ".join(self.P(M[i, j]) for j in range(c)) + "]" for i in range(r))
+            return [f"{indent}{name} = np.array([{rows}])"]
+        return [f"{indent}{name} = np.zeros(({r}, {c}))"] + \
+            [f"{indent}{name}[{i}, {j}] = {self.P(v)}" for (i, j), v in sorted(M.todok().items())]
 
     def affine_rows(self):
         """Rows of ``M`` with ``rhs = M @ [x, u, 1]``, or None where the model is not affine.
@@ -591,9 +604,7 @@ class _Writer:
             if not cols:
                 continue
             n, js = len(zs), sorted(cols)
-            Jz = _jacobian(b.residuals, zs)
-            rows = ", ".join("[" + ", ".join(self.P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
-            out += [f"    _Jz = np.array([{rows}])", f"    _G = np.zeros(({n}, {len(js)}))"]
+            out += self.matrix_lines("_Jz", _jacobian(b.residuals, zs)) + [f"    _G = np.zeros(({n}, {len(js)}))"]
             out += [f"    _G[{r_i}, {c}] = {code}" for c, j in enumerate(js) for r_i, code in cols[j].items()]
             out.append("    _Dz = -np.linalg.solve(_Jz, _G)")
             for zi, z in enumerate(zs):
@@ -764,6 +775,9 @@ def _diff(expr, w):
     split = linear_coefficient(expr, w)
     return split[0] if split is not None else sp.diff(expr, w)
 
+
+#: Loop matrices up to this many rows are printed as array literals; larger ones entry by entry.
+DENSE_MAX_UNKNOWNS = 8
 
 #: Expressions with more operations than this are printed after common-subexpression elimination.
 CSE_MIN_OPS = 40

@@ -239,7 +239,8 @@ def _solve_linear(residuals, zs):
         A, b = sp.linear_eq_to_matrix([sp.expand(r) for r in residuals], zs)
     except NonlinearError:
         return None, None
-    if any(A[i, j].free_symbols & set(zs) for i in range(A.rows) for j in range(A.cols)):
+    unknowns = set(zs)
+    if any(a.free_symbols & unknowns for a in A.values()):       # the nonzero entries
         return None, None
     return A, b
 

@@ -200,15 +200,19 @@ def _version() -> str:
         return __version__
 
 
+#: warnings of the libraries (numpy, scipy, sympy, ...) held back until the command has succeeded,
+#: so that none of them comes before an error line
+_DEFERRED: list = []
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """The project's warnings as one line on stderr; others as Python prints them."""
+    """The project's warnings as one line on stderr at once; the libraries' warnings held back."""
     if issubclass(category, MultipoleWarning):
         print(f"multipole: warning: {message}", file=sys.stderr)
     else:
-        _python_show_warning(message, category, filename, lineno, file, line)
-
-
-_python_show_warning = warnings.showwarning
+        text = f"multipole: warning: {category.__name__}: {str(message).splitlines()[0] if str(message) else ''}"
+        if text not in _DEFERRED:
+            _DEFERRED.append(text)
 
 
 def main(argv=None) -> int:
@@ -264,8 +268,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     shown = warnings.showwarning
     warnings.showwarning = _show_warning
+    _DEFERRED.clear()
     try:
-        return args.func(args)
+        code = args.func(args)
+        for text in _DEFERRED:               # after a success (or the check's findings) only
+            print(text, file=sys.stderr)
+        return code
     except BrokenPipeError:              # output piped into `head` and the like: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0

@@ -93,6 +93,30 @@ def test_error_classes_carry_their_exit_code():
     assert NewtonError("no solution").code == "newton_failed"
 
 
+def test_library_warnings_never_precede_the_error_line(capsys, monkeypatch):
+    """A numpy warning during a command that then fails is dropped; after a success it is printed
+    as one line after the output."""
+    import warnings
+    from multipole import cli
+
+    def failing(args):
+        warnings.warn("overflow encountered in exp", RuntimeWarning)
+        raise RunError("arithmetic_error", "failed")
+    monkeypatch.setattr(cli, "cmd_elements", failing)
+    assert main(["elements"]) == 3
+    assert capsys.readouterr().err.splitlines() == ["error[arithmetic_error] failed"]
+
+    def succeeding(args):
+        warnings.warn("overflow encountered in exp", RuntimeWarning)
+        print("done")
+        return 0
+    monkeypatch.setattr(cli, "cmd_elements", succeeding)
+    assert main(["elements"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == "done\n"
+    assert captured.err.splitlines() == ["multipole: warning: RuntimeWarning: overflow encountered in exp"]
+
+
 def test_version(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["--version"])

@@ -310,8 +310,8 @@ class _Builder:
         if isinstance(d.get("name"), int) and not isinstance(d["name"], bool):
             d["name"] = str(d["name"])                      # name: 2024
         if "name" in d and not (isinstance(d["name"], str) and _SCENE_NAME.match(d["name"])):
-            raise self.err("bad_name", f"scene name {str(d['name'])[:40]!r} may use letters, digits, spaces and _ . + -",
-                           "e.g. name: gear_stage", d.lines.get("name"))
+            raise self.err("bad_name", f"scene name {str(d['name'])[:40]!r} may use letters, digits, spaces "
+                           "and _ . + -", "e.g. name: gear_stage", d.lines.get("name"))
         params = self.parameters(d.get("parameters") or _Map())
         symbols = {name: sp.Symbol(name) for name in params}
         children, types, lines, texts = {}, {}, {}, {}

@@ -55,7 +55,7 @@ import sympy as sp
 
 from multipole import CField, I, R, ElementType, ModelError, Network, Param, Quantity, junction_a, junction_b, register
 
-MAX_STACK = 50       # largest piezo_stack n a netlist may ask for (checked by the loader)
+MAX_STACK = 100      # largest piezo_stack n a netlist may ask for (checked by the loader)
 _NAMES = ("k_P", "delta_P", "C_P", "m", "R")
 _S = {name: sp.Symbol(name) for name in _NAMES}
 

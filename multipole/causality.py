@@ -625,14 +625,20 @@ class _Analyser:
     def reference_rows(nulls, d):
         """``d`` equations whose weights in the null combinations never vanish over the samples."""
         weight = np.min([np.abs(N[:, :d]).max(axis=1) / max(np.abs(N).max(), 1e-300) for N in nulls], axis=0)
+        A = nulls[0][:, :d]
         rows: list = []
-        for _ in range(d):
-            order = [i for i in np.argsort(-weight) if i not in rows]
-            for i in order:
-                trial = rows + [i]
-                if np.linalg.matrix_rank(nulls[0][trial, :d]) == len(trial):
-                    rows = trial
-                    break
+        basis = np.zeros((0, d))       # orthonormal basis of the rows taken so far
+        largest = 0.0
+        for i in np.argsort(-weight):  # one pass: a row dependent on the taken ones stays dependent
+            if len(rows) == d:
+                break
+            r = A[i] - basis.T @ (basis @ A[i])
+            size = np.linalg.norm(r)
+            # independent by matrix_rank's rule: above max(shape)·eps·(largest singular value)
+            if size > max(len(rows) + 1, d) * np.finfo(float).eps * max(largest, np.linalg.norm(A[i])):
+                rows.append(int(i))
+                basis = np.vstack([basis, r / size])
+                largest = max(largest, np.linalg.norm(A[i]))
         return rows
 
     def demote(self, eq_ids, chosen):

@@ -41,7 +41,7 @@ from multipole import (LAW_Q, TF, C, ElementType, ModelError, Network, Param, Pr
 from .basic import inertia
 
 LEVELS = ("ideal", "elastic", "normal")
-MAX_STAGES = 10     # longest gear_train a netlist may ask for (checked by the loader)
+MAX_STAGES = 20     # longest gear_train a netlist may ask for (checked by the loader)
 
 _R1, _R2, _C, _CN, _D, _X0 = (sp.Symbol(n) for n in ("r1", "r2", "c", "c_n", "d", "x0"))
 _Z1, _PHASE0, _ALPHA = (sp.Symbol(n) for n in ("z1", "phase0", "alpha"))

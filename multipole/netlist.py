@@ -26,6 +26,7 @@ from .errors import MultipoleError, NetlistError
 from .expressions import MAX_DIGITS, parse_expression, reserved
 from .network import Network
 from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive
+from .stages import bulk
 
 _LAW_VARS = {"f": LAW_F, "q": LAW_Q, "p": LAW_P}
 _TOP_KEYS = {"name", "description", "parameters", "elements", "connections", "outputs", "simulate",
@@ -197,6 +198,7 @@ def load(path, overrides=None) -> Scene:
     return loads(text, str(path), overrides)
 
 
+@bulk
 def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
     """Read a netlist from text; ``filename`` is used in error messages."""
     if len(text) > MAX_FILE_BYTES:

@@ -390,14 +390,23 @@ def _newton_block(b: Block, values: dict):
     res = [sp.sympify(r).xreplace(values) for r in b.residuals]
     if any(r.free_symbols - set(b.variables) for r in res):
         raise ArithmeticError("the loop needs values that are not available")
-    fun = sp.lambdify([b.variables], res, "numpy")
-    jac = sp.lambdify([b.variables], sp.Matrix(res).jacobian(b.variables), "numpy")
+    try:
+        fun = sp.lambdify([b.variables], res, "numpy")
+        jac = sp.lambdify([b.variables], sp.Matrix(res).jacobian(b.variables), "numpy")
+    except Exception as exc:      # noqa: BLE001 -- sympy cannot print it for numpy: not computable here
+        raise ArithmeticError(f"the loop cannot be evaluated numerically here ({exc})") from None
 
-    def f(z):
-        return np.asarray(fun(z), dtype=float)
-
-    def fprime(z):
-        return np.asarray(jac(z), dtype=float).reshape(len(res), len(z))
+    def guarded(g, shape=None):
+        def call(z):
+            try:
+                out = np.asarray(g(z), dtype=float)
+            except (NameError, TypeError, ValueError, ZeroDivisionError, OverflowError, AttributeError) as exc:
+                # a function numpy does not have (DiracDelta of a differentiated step), a complex value
+                raise ArithmeticError(f"the loop cannot be evaluated numerically here ({exc})") from None
+            return out.reshape(shape) if shape else out
+        return call
+    f = guarded(fun)
+    fprime = guarded(jac, (len(res), len(b.variables)))
     n = len(b.variables)
     rng = np.random.default_rng(0)
     starts = [np.zeros(n), np.ones(n), -np.ones(n)] + [rng.normal(scale=10.0, size=n) for _ in range(3)]

@@ -183,3 +183,23 @@ def test_an_isolated_singular_root_of_a_loop_is_not_refused():
     """
     eq = pipeline.equations(scene(text))
     assert any(b.kind == "newton" for b in eq.blocks)
+
+
+def test_a_loop_numpy_cannot_evaluate_is_left_to_the_run():
+    """Found by the fuzz test: a damper law ramp(sign(2f) − c) behind a DC motor makes a Newton loop
+    whose Jacobian contains DiracDelta, which numpy cannot evaluate; the start-up look at the loops
+    must not end in a traceback (the equations are built; the run reports what it finds)."""
+    text = """
+    name: fuzz_case
+    elements:
+      src:    {type: voltage_source, value: 2801.2}
+      gnd:    {type: ground, domain: electrical}
+      motor0: {type: dc_motor, k: 0.2315, R: 0.8312, L: 0.004016, J: 8.908e-05, grounded: false}
+      load0:  {type: damper, law: "ramp(sign((f + f)) - 0.0097)"}
+    connections:
+      - [motor0.shaft, load0.a]
+      - [src.p, motor0.elec]
+      - [motor0.elec_n, src.n, gnd.p]
+    """
+    eq = pipeline.equations(scene(text))
+    assert any(b.kind == "newton" for b in eq.blocks)

@@ -434,6 +434,35 @@ def test_cli_unknown_backend_is_a_clean_error(capsys):
     assert "unknown backend 'no_such_backend'" in err and "numpy" in err and "Traceback" not in err
 
 
+
+def test_backends_are_loaded_from_their_entry_point_group(monkeypatch):
+    """Both bundled backends come from the ``multipole.backends`` entry points of the installed
+    distribution (pyproject.toml), not from a list inside the kernel."""
+    from importlib.metadata import entry_points
+
+    from multipole import backends
+    group = {ep.name: ep.value for ep in entry_points(group="multipole.backends")}
+    assert group.get("numpy") == "multipole.backends:numpy_backend"
+    assert group.get("numba") == "multipole.backends.numba_backend:run"
+    monkeypatch.setattr(backends, "_BACKENDS", {})
+    assert backends.get_backend("numpy") is backends.numpy_backend
+    assert "numpy" in backends.available()
+
+
+def test_a_backend_whose_package_is_missing_is_refused_by_name(monkeypatch):
+    from importlib.metadata import EntryPoint
+
+    from multipole import backends
+    from multipole.errors import MultipoleError
+    missing = EntryPoint("ghost", "no_such_package_h11.backend:run", backends.GROUP)
+    monkeypatch.setattr(backends, "_entry_points", lambda: {"ghost": missing})
+    with pytest.raises(MultipoleError) as exc:
+        backends.get_backend("ghost")
+    assert exc.value.code == "backend_unavailable" and "no_such_package_h11" in str(exc.value)
+    with pytest.raises(MultipoleError) as exc:
+        backends.get_backend("nothing_registered")
+    assert exc.value.code == "unknown_backend"
+
 # -- the kernels' numerical building blocks ---------------------------------------------------------------
 def test_tableaus_satisfy_their_order_conditions(nb):
     from multipole.backends import numba_kernels as K

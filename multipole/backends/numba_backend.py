@@ -57,7 +57,6 @@ from ..errors import MultipoleError, MultipoleWarning
 from ..simulate import (MAX_EVENTS, Result, SimulationError, _Progress, check_finite, choose_solver, output_grid,
                         solver_stats, time_switch_schedule)
 from . import numba_kernels as K
-from . import register_backend
 
 #: explicit and implicit method of this backend, and what the other scipy names run as
 METHODS = {"RK45": "RK45", "Radau": "Radau", "DOP853": "RK45", "RK23": "RK45", "BDF": "Radau", "LSODA": "Radau"}
@@ -613,5 +612,3 @@ def _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, p
     result.stats["backend"] = f"numpy (fallback: {why})"
     return result
 
-
-register_backend("numba", run)

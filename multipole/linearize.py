@@ -175,7 +175,9 @@ def cmd_linearize(args) -> int:
     print(f"# {scene.name}: linearised at t = 0 about the initial state")
     print(lin.to_text())
     if args.bode:
-        bode(lin, args.bode, scene.name)
+        from .files import atomic_output
+        with atomic_output(args.bode) as tmp:      # an interrupted write leaves no short figure behind
+            bode(lin, tmp, scene.name)
         print(f"wrote {args.bode}")
     return 0
 

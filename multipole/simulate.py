@@ -122,8 +122,9 @@ class Result:
         axes[-1, 0].set_xlabel("t [s]")
         import textwrap
         fig.suptitle(textwrap.fill(title or "simulation", 90), fontsize=10)
-        fig.text(0.99, 0.005, self.summary(), ha="right", va="bottom", fontsize=6, color="0.35")
-        fig.tight_layout(rect=(0, 0.02, 1, 1))
+        footer = textwrap.fill(self.summary(), 170)       # the solver's reason can be long: never cut
+        fig.text(0.99, 0.005, footer, ha="right", va="bottom", fontsize=6, color="0.35")
+        fig.tight_layout(rect=(0, 0.012 + 0.012 * footer.count("\n") + 0.01, 1, 1))
         if path:
             with atomic_output(path) as tmp:
                 fig.savefig(tmp, dpi=120, format=str(path).rsplit(".", 1)[-1].lower())

@@ -36,9 +36,9 @@ _SIM_KEYS = {"t_end": float, "dt_out": float, "solver": str, "rtol": float, "ato
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _SCENE_NAME = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.+\- ]{0,79}$")
 
-MAX_FILE_BYTES = 1 << 20          # 1 MiB: larger files are refused without reading them whole
-MAX_YAML_NODES = 100_000          # YAML nodes after expanding aliases (refuses "billion laughs")
-MAX_ELEMENTS = 1000               # elements in one scene
+MAX_FILE_BYTES = 8 << 20          # 8 MiB: larger files are refused without reading them whole
+MAX_YAML_NODES = 1_000_000        # YAML nodes after expanding aliases (refuses "billion laughs")
+MAX_ELEMENTS = 50_000             # elements in one scene (a 10,000-pair chain has 20,002)
 MAX_LIST = 1000                   # entries of a list parameter
 MAX_STEPS = 100_000_000           # t_end/max_step
 MIN_RTOL = 1e-14                  # below it the integrators cannot meet the tolerance in float64

@@ -134,9 +134,10 @@ class Result:
 
 class _Progress:
     def __init__(self, t_end, enabled):
-        self.t_end, self.enabled, self.last = t_end, enabled, 0.0
+        self.t_end, self.enabled, self.last, self.t = t_end, enabled, 0.0, 0.0
 
     def update(self, t, force=False):
+        self.t = t                        # the time reached, for the message of an interruption
         if not self.enabled:
             return
         now = time.monotonic()
@@ -385,8 +386,16 @@ def expected_steps(model, solver: str, t_end: float) -> tuple[float, str] | None
 
 def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "auto", rtol: float = 1e-6,
              atol: float = 1e-9, max_step: float = np.inf, progress: bool | None = None,
-             x0=None) -> Result:
+             x0=None, integrator=None) -> Result:
     """Integrate ``model`` from 0 to ``t_end`` [s] and sample its outputs every ``dt_out`` [s].
+
+    This is the one driver of every backend (docs/backends.md): it checks the options, builds the
+    output grid, chooses the method (``auto``: :func:`choose_solver`), schedules the crossings of
+    the switching functions of time alone, shows the progress bar, lets ``integrator`` (default
+    :data:`SCIPY`, scipy's methods stepped in Python; a backend may supply a compiled one, see
+    :class:`multipole.backends.Integrator`) fill the states on the grid and report its events and
+    counters, then samples the outputs, refuses non-finite values and builds the :class:`Result`
+    with the statistics of :data:`STATS_KEYS`.
 
     Errors: :class:`~multipole.errors.MultipoleError` for options that cannot be served (an
     output grid of more than :data:`MAX_OUTPUT_ROWS` rows, an unknown solver);
@@ -399,26 +408,32 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     :data:`MANY_STEPS` steps is announced with a :class:`~multipole.errors.MultipoleWarning`.
     Ctrl-C raises :class:`~multipole.errors.Interrupted` with the time reached.
     """
+    integrator = integrator or SCIPY
     n_columns = 1 + len(model.x0) + len(model.output_names)
     t_grid = output_grid(t_end, dt_out, n_columns)
-    if solver != "auto" and solver not in SOLVERS:
-        raise MultipoleError("unknown_solver", f"unknown solver {solver!r}", f"use auto or one of {', '.join(SOLVERS)}")
-    estimate = expected_steps(model, solver, t_end)
+    if solver != "auto" and solver not in integrator.solvers:
+        raise MultipoleError("unknown_solver", f"unknown solver {solver!r}",
+                             f"use auto or one of {', '.join(integrator.solvers)}")
+    plans = model.__dict__.setdefault("_plans", {})      # per model: the estimate and the choice
+    if (solver, t_end, rtol) not in plans:
+        plans[(solver, t_end, rtol)] = expected_steps(model, solver, t_end), None
+    estimate = plans[(solver, t_end, rtol)][0]
     if estimate is not None and estimate[0] > MANY_STEPS:
         warnings.warn(f"{model.name}: the stiffness estimate says this run takes about {estimate[0]:.2g} steps "
                       f"({estimate[1]}); it may run for hours (shorten t_end, or soften the stiffest coupling)",
                       MultipoleWarning, stacklevel=2)
     if progress is None:
         progress = sys.stderr.isatty()
+    bar = _Progress(t_end, progress)
     try:
         with warnings.catch_warnings(record=True) as caught, np.errstate(all="ignore"):
             warnings.simplefilter("always")
-            result = _integrate(model, t_end, t_grid, solver, rtol, atol, max_step, progress, x0)
+            result = _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, x0)
     except BaseException as exc:
         if progress:                       # end the progress bar's line before the error line
             sys.stderr.write("\n")
         if isinstance(exc, KeyboardInterrupt) and not isinstance(exc, Interrupted):
-            raise Interrupted(_time_reached(exc)) from None
+            raise Interrupted(float(bar.t)) from None
         if isinstance(exc, (ArithmeticError, ValueError, np.linalg.LinAlgError)) and \
                 not isinstance(exc, MultipoleError):
             failure = model_failure(model, exc)
@@ -434,15 +449,56 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     return result
 
 
-def _time_reached(exc) -> float | None:
-    """The simulated time [s] at which an exception interrupted :func:`_integrate`."""
-    tb, t = exc.__traceback__, None
-    while tb is not None:
-        if tb.tb_frame.f_code.co_name == "_integrate":
-            loc = tb.tb_frame.f_locals
-            t = getattr(loc.get("ode"), "t", loc.get("t"))
-        tb = tb.tb_next
-    return float(t) if isinstance(t, (int, float, np.floating)) else None
+@dataclass
+class Run:
+    """What an integrator hands back to the driver: the states on the output grid (shape
+    ``(len(t_grid), n_states)``), the events ``[(t [s], switching function index), ...]`` in time
+    order, and its work counters (keys of :data:`STATS_KEYS`; ``steps``, ``nfev`` ... )."""
+
+    states: np.ndarray
+    events: list
+    counters: dict
+
+
+def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, x0) -> Result:
+    """What every backend shares around its integrator (see :func:`simulate`)."""
+    start = time.perf_counter()
+    key = (solver, t_end, rtol)
+    estimate, plan = model._plans[key]
+    if plan is None:
+        auto = choose_solver(model, t_end, rtol) if solver == "auto" else None
+        plan = model._plans[key] = estimate, integrator.method(solver, auto)
+        plan = plan[1]
+    method, reason = plan
+    x = np.array(model.x0 if x0 is None else x0, dtype=float)
+    schedule, sides = _time_switches(model, x, t_end)
+    run = integrator.integrate(model, method, t_grid, x, schedule, sides, t_end, rtol, atol, max_step, bar)
+    bar.close()
+    outs = sample_outputs(model, t_grid, run.states)
+    run_time = time.perf_counter() - start
+    events = [(float(t), model.switch_text[k]) for t, k in run.events]
+    cached = bool(getattr(model, "cached", False))
+    stats = solver_stats(run.counters, backend=integrator.name, events=len(events), run_time=run_time,
+                         wall_time=run_time, translate_time=getattr(model, "translate_time", None),
+                         compile_time=getattr(model, "compile_time", None), compile_cached=cached,
+                         model_cached=cached)
+    outputs = {name: outs[:, k].copy() for k, name in enumerate(model.output_names)}
+    units = dict(zip(model.output_names, getattr(model, "output_units", [])))
+    return Result(t_grid, outputs, run.states, list(model.state_names), method, reason, stats, events, units)
+
+
+def _time_switches(model, x, t_end) -> tuple[list, np.ndarray]:
+    """:func:`time_switch_schedule` of the model over ``[0, t_end]``, found once per horizon."""
+    if not model.n_switches:
+        return [], np.ones(0)
+    schedules = model.__dict__.setdefault("_schedules", {})
+    if t_end not in schedules:
+        schedules[t_end] = time_switch_schedule(lambda tt: model.switches(tt, x),
+                                                getattr(model, "switch_time_only", [False] * model.n_switches),
+                                                getattr(model, "switch_rate", []), t_end, model.switch_text,
+                                                getattr(model, "switch_roots", None))
+    schedule, sides = schedules[t_end]
+    return schedule, sides.copy()
 
 
 _REASONS = {ZeroDivisionError: "division by zero", OverflowError: "overflow (a value beyond 1.8e308, "
@@ -566,111 +622,114 @@ def locate_non_finite(model, t: float, x) -> tuple[str, str | None]:
     return "no variable of the model (the solver's own arithmetic)", None
 
 
-def _integrate(model, t_end: float, t_grid, solver: str, rtol: float, atol: float, max_step: float,
-               progress: bool, x0) -> Result:
-    """The step loop of :func:`simulate` (its options checked, warnings captured)."""
-    reason = "chosen by the user"
-    if solver == "auto":
-        solver, reason = choose_solver(model, t_end, rtol)
-    cls = SOLVERS[solver]
-    x = np.array(model.x0 if x0 is None else x0, dtype=float)
-    n = len(x)
-    model.reset_stats()
-    bar = _Progress(t_end, progress)
-    states = np.empty((len(t_grid), n))
-    k_out = 0
-    stats = {"steps": 0, "nfev": 0, "njev": 0, "nlu": 0, "segments": 0, "dense_calls": 0}
-    events = []
-    t = 0.0
-    start = time.perf_counter()
-    forced: dict = {}
-    rhs, newton_failures = _rejecting_unsolvable_loops(model)
-    # switching functions of time alone: their crossings are found first and end segments
-    time_only = np.array(getattr(model, "switch_time_only", [False] * model.n_switches), dtype=bool)
-    watch = ~time_only                     # the switches checked after every step
-    schedule, t_sides = time_switch_schedule(lambda tt: model.switches(tt, x), time_only,
-                                             getattr(model, "switch_rate", []), t_end, model.switch_text,
-                                             getattr(model, "switch_roots", None))
-    i_sched = 0
-    while n and k_out < len(t_grid):
-        while i_sched < len(schedule) and schedule[i_sched][0] <= t:     # a scheduled crossing
-            _, k, side = schedule[i_sched]
-            t_sides[k] = side
-            events.append((float(t), model.switch_text[k]))
-            i_sched += 1
-            _check_chattering(events)
-        t_bound = schedule[i_sched][0] if i_sched < len(schedule) else t_end
-        kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
-        if solver in IMPLICIT:
-            kw["jac"] = model.jac_in_mode if model.n_switches else model.jac
-        g_sign = np.sign(np.array(model.switches(t, x), dtype=float))
-        for k, sgn in forced.items():      # just past an event: the new side's sign
-            g_sign[k] = sgn
-        forced = {}
-        if model.n_switches:               # hold every switch on its side for this segment
-            g_sign = _sides(model, t, x, g_sign, t_end)
-            g_sign[time_only] = t_sides[time_only]
-            model.set_mode(g_sign)
-        ode = cls(rhs, t, x, t_bound, **kw)
-        stats["segments"] += 1
-        event = None
-        while ode.status == "running" and event is None:
-            try:
-                msg = ode.step()
-            except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-                raise model_failure(model, exc) or SimulationError(
-                    "step_failed", f"integration failed at t = {ode.t:.6g} s: {exc}") from None
-            if ode.status == "failed":
-                element = None
-                if newton_failures:
-                    last = newton_failures[-1]
-                    msg += f"; Newton's method failed {len(newton_failures)} times, last: {last.message}"
-                    element = last.element
-                elif not np.all(np.isfinite(rhs(ode.t, ode.y))):
-                    cause, element = locate_non_finite(model, ode.t, ode.y)
-                    msg += f"; infinite or NaN: {cause}"
-                raise _failed(model, "step_failed", f"{solver} failed at t = {ode.t:.6g} s: {msg}",
-                              "try solver auto or Radau, or tighter tolerances", element)
-            stats["steps"] += 1
-            dense = _Dense(ode, stats)
-            t_stop = ode.t
-            if watch.any():
-                event = _first_crossing(model, dense, g_sign, watch, ode.t_old, ode.t)
-                if event is not None:
-                    t_stop = event[0]
-            while k_out < len(t_grid) and t_grid[k_out] <= t_stop + 1e-12 * max(1.0, t_end):
-                states[k_out] = dense(min(t_grid[k_out], ode.t))
-                k_out += 1
-            bar.update(t_stop)
-        _accumulate(stats, ode, solver)
-        if event is None:
-            t, x = ode.t, ode.y
-            if ode.status == "finished" and t_bound >= t_end:
-                states[k_out:] = ode.y
-                k_out = len(t_grid)
-            continue
-        t, k_ev = event
-        x = dense(t)
-        forced = {k_ev: -g_sign[k_ev]}
-        events.append((t, model.switch_text[k_ev]))
-        _check_chattering(events)
-    bar.close()
-    stats["wall_time"] = stats["run_time"] = time.perf_counter() - start
-    stats.update({k: v for k, v in model.stats.items()})
-    dense_calls = stats.pop("dense_calls")
-    if solver in _STAGES:
-        extra = dense_calls * (3 if solver == "DOP853" else 0)
-        # every segment starts with two evaluations: f(t0) and the one of the initial step size
-        attempts = (stats["nfev"] - 2 * stats["segments"] - extra) / _STAGES[solver]
-        stats["rejected"] = max(int(round(attempts - stats["steps"])), 0)
-    cached = bool(getattr(model, "cached", False))
-    stats = solver_stats(stats, backend="numpy", events=len(events), newton_failures=len(newton_failures),
-                         compile_time=getattr(model, "compile_time", None), compile_cached=cached,
-                         model_cached=cached)
-    outs = sample_outputs(model, t_grid, states)
-    outputs = {name: outs[:, k] for k, name in enumerate(model.output_names)}
-    units = dict(zip(model.output_names, getattr(model, "output_units", [])))
-    return Result(t_grid, outputs, states, list(model.state_names), solver, reason, stats, events, units)
+class ScipyIntegrator:
+    """scipy's ``OdeSolver`` classes stepped in Python (the ``numpy`` backend's integrator).
+
+    Every switch is held on its side for a segment (``Model.rhs_in_mode``); segments end at the
+    scheduled crossings of the switching functions of time alone and at the earliest crossing of
+    the others, checked at :data:`PROBES` points of every step."""
+
+    name = "numpy"
+    solvers = tuple(SOLVERS)
+
+    def method(self, solver: str, auto: tuple | None) -> tuple[str, str]:
+        """``(method, reason)`` for the requested ``solver``; ``auto``: what :func:`choose_solver` said."""
+        return auto if auto is not None else (solver, "chosen by the user")
+
+    def integrate(self, model, solver, t_grid, x, schedule, t_sides, t_end, rtol, atol, max_step, bar) -> Run:
+        """The states on ``t_grid`` from ``x`` at t = 0 (see :class:`Run`)."""
+        cls = SOLVERS[solver]
+        n = len(x)
+        model.reset_stats()
+        states = np.empty((len(t_grid), n))
+        k_out = 0
+        stats = {"steps": 0, "nfev": 0, "njev": 0, "nlu": 0, "segments": 0, "dense_calls": 0}
+        events: list = []
+        t = 0.0
+        forced: dict = {}
+        rhs, newton_failures = _rejecting_unsolvable_loops(model)
+        time_only = np.array(getattr(model, "switch_time_only", [False] * model.n_switches), dtype=bool)
+        watch = ~time_only                     # the switches checked after every step
+        i_sched = 0
+        while n and k_out < len(t_grid):
+            while i_sched < len(schedule) and schedule[i_sched][0] <= t:     # a scheduled crossing
+                _, k, side = schedule[i_sched]
+                t_sides[k] = side
+                events.append((float(t), k))
+                i_sched += 1
+                _check_chattering(events, model.switch_text)
+            t_bound = schedule[i_sched][0] if i_sched < len(schedule) else t_end
+            kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
+            if solver in IMPLICIT:
+                kw["jac"] = model.jac_in_mode if model.n_switches else model.jac
+            g_sign = np.sign(np.array(model.switches(t, x), dtype=float))
+            for k, sgn in forced.items():      # just past an event: the new side's sign
+                g_sign[k] = sgn
+            forced = {}
+            if model.n_switches:               # hold every switch on its side for this segment
+                g_sign = _sides(model, t, x, g_sign, t_end)
+                g_sign[time_only] = t_sides[time_only]
+                model.set_mode(g_sign)
+            ode = cls(rhs, t, x, t_bound, **kw)
+            stats["segments"] += 1
+            event = None
+            while ode.status == "running" and event is None:
+                try:
+                    msg = ode.step()
+                except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+                    raise model_failure(model, exc) or SimulationError(
+                        "step_failed", f"integration failed at t = {ode.t:.6g} s: {exc}") from None
+                if ode.status == "failed":
+                    element = None
+                    if newton_failures:
+                        last = newton_failures[-1]
+                        msg += f"; Newton's method failed {len(newton_failures)} times, last: {last.message}"
+                        element = last.element
+                    elif not np.all(np.isfinite(rhs(ode.t, ode.y))):
+                        cause, element = locate_non_finite(model, ode.t, ode.y)
+                        msg += f"; infinite or NaN: {cause}"
+                    raise step_failed(model, f"{solver} failed at t = {ode.t:.6g} s: {msg}", element)
+                stats["steps"] += 1
+                dense = _Dense(ode, stats)
+                t_stop = ode.t
+                if watch.any():
+                    event = _first_crossing(model, dense, g_sign, watch, ode.t_old, ode.t)
+                    if event is not None:
+                        t_stop = event[0]
+                while k_out < len(t_grid) and t_grid[k_out] <= t_stop + 1e-12 * max(1.0, t_end):
+                    states[k_out] = dense(min(t_grid[k_out], ode.t))
+                    k_out += 1
+                bar.update(t_stop)
+            _accumulate(stats, ode, solver)
+            if event is None:
+                t, x = ode.t, ode.y
+                if ode.status == "finished" and t_bound >= t_end:
+                    states[k_out:] = ode.y
+                    k_out = len(t_grid)
+                continue
+            t, k_ev = event
+            x = dense(t)
+            forced = {k_ev: -g_sign[k_ev]}
+            events.append((t, k_ev))
+            _check_chattering(events, model.switch_text)
+        stats.update({k: v for k, v in model.stats.items()})
+        dense_calls = stats.pop("dense_calls")
+        if solver in _STAGES:
+            extra = dense_calls * (3 if solver == "DOP853" else 0)
+            # every segment starts with two evaluations: f(t0) and the one of the initial step size
+            attempts = (stats["nfev"] - 2 * stats["segments"] - extra) / _STAGES[solver]
+            stats["rejected"] = max(int(round(attempts - stats["steps"])), 0)
+        stats["newton_failures"] = len(newton_failures)
+        return Run(states, events, stats)
+
+
+#: the numpy backend's integrator (the default of :func:`simulate`)
+SCIPY = ScipyIntegrator()
+
+
+def step_failed(model, message: str, element: str | None = None) -> SimulationError:
+    """The error of an integrator that cannot take a step (every backend; exit code 3)."""
+    return _failed(model, "step_failed", message, "try solver auto or Radau, or tighter tolerances", element)
 
 
 def check_finite(t_grid, states, outs, state_names, output_names, model=None) -> None:
@@ -693,10 +752,18 @@ def check_finite(t_grid, states, outs, state_names, output_names, model=None) ->
 
 
 def sample_outputs(model, t_grid, states) -> np.ndarray:
-    """The outputs on the grid, shape ``(len(t_grid), n_outputs)``; non-finite values refused."""
-    outs = np.array([model.outputs(tt, xx) for tt, xx in zip(t_grid, states)]) if model.output_names else \
-        np.empty((len(t_grid), 0))
-    check_finite(t_grid, states, outs, model.state_names, model.output_names, model)
+    """The outputs on the grid, shape ``(len(t_grid), n_outputs)`` (``model.outputs_on_grid`` when
+    the model has it, e.g. compiled; else ``model.outputs`` row by row); non-finite values refused
+    (traced to the element through ``model.values`` where the model has it)."""
+    on_grid = getattr(model, "outputs_on_grid", None)
+    if not model.output_names:
+        outs = np.empty((len(t_grid), 0))
+    elif on_grid is not None:
+        outs = on_grid(t_grid, states)
+    else:
+        outs = np.array([model.outputs(tt, xx) for tt, xx in zip(t_grid, states)])
+    check_finite(t_grid, states, outs, model.state_names, model.output_names,
+                 model if hasattr(model, "values") else None)
     return outs
 
 
@@ -729,11 +796,17 @@ MAX_TIME_SAMPLES = 2_000_000
 MAX_EVENTS = 5000
 
 
-def _check_chattering(events):
+def _check_chattering(events, texts):
+    """Refuse a run past :data:`MAX_EVENTS` events ``[(t, k), ...]`` (every backend)."""
     if len(events) > MAX_EVENTS:
-        t, text = events[-1]
-        raise SimulationError("chattering", f"more than {MAX_EVENTS} switching events by t = {t:.6g} s "
-                              f"(last: {text})", "regularise the law or check the model")
+        t, k = events[-1]
+        raise chattering(t, texts[k])
+
+
+def chattering(t: float, text: str) -> SimulationError:
+    """The error of a run with more than :data:`MAX_EVENTS` events, the last at ``t`` [s] of ``text``."""
+    return SimulationError("chattering", f"more than {MAX_EVENTS} switching events by t = {t:.6g} s "
+                           f"(last: {text})", "regularise the law or check the model")
 
 
 def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> tuple[list, np.ndarray]:

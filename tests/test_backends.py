@@ -435,6 +435,33 @@ def test_cli_unknown_backend_is_a_clean_error(capsys):
 
 
 
+CHATTER = """
+name: square_wave_torque
+parameters: {J: 1.0e-3, T: 1.0, w: 100000.0}
+elements:
+  drive: {type: torque_source, value: "T*sign(sin(w*t))"}
+  body:  {type: inertia, J: J}
+connections:
+  - [drive.p, body.a]
+outputs: [body.omega]
+simulate: {t_end: 0.2, dt_out: 1.0e-4}
+"""
+
+
+def test_both_backends_end_a_chattering_run_with_one_error_text(nb):
+    """The shared driver words the event limit once: the square wave's crossings are k*pi/w, so
+    the (MAX_EVENTS + 1)-th ends the run at (MAX_EVENTS + 1)*pi/w on either backend, same text."""
+    from multipole.simulate import MAX_EVENTS, SimulationError
+    messages = {}
+    for backend in ("numpy", "numba"):
+        with pytest.raises(SimulationError) as err:
+            pipeline.run(scene(CHATTER), progress=False, backend=backend)
+        assert err.value.code == "chattering"
+        messages[backend] = err.value.message
+    t_last = (MAX_EVENTS + 1) * math.pi / 1e5
+    assert messages["numpy"] == messages["numba"]
+    assert f"more than {MAX_EVENTS} switching events by t = {t_last:.6g} s" in messages["numba"]
+
 def test_backends_are_loaded_from_their_entry_point_group(monkeypatch):
     """Both bundled backends come from the ``multipole.backends`` entry points of the installed
     distribution (pyproject.toml), not from a list inside the kernel."""
@@ -516,13 +543,13 @@ def _bench_scene(name, path, overrides, hand, stiff, rtol0, atol0, rtols):
     from scipy.integrate import solve_ivp
 
     from multipole.backends import numba_backend as nbk
-    from multipole.simulate import simulate
+    from multipole.simulate import output_grid, simulate
     sc = load(path, overrides)
     eq = pipeline.equations(sc)
     outs = sc.outputs
     t_end, dt_out = sc.simulate["t_end"], sc.simulate["dt_out"]
     model = pipeline.model(sc)
-    grid = nbk.output_grid(t_end, dt_out)
+    grid = output_grid(t_end, dt_out)
     exact = hand.exact(grid)
     x0 = np.zeros(len(eq.states))
     methods = ["Radau"] if stiff else ["RK45", "DOP853"]

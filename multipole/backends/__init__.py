@@ -1,8 +1,19 @@
 """Simulation backends, selectable per run (``multipole simulate --backend NAME``).
 
+The seam (docs/backends.md):
+
+* a **backend** is a :class:`Backend`: ``compile(equations, outputs) -> model`` turns the derived
+  equations into a model, and ``integrator`` optionally supplies its own :class:`Integrator`
+  (default: scipy's methods stepped in Python, :data:`multipole.simulate.SCIPY`);
+* calling the backend runs the one shared driver, :func:`multipole.simulate.simulate`: options,
+  output grid, the ``auto`` choice, the schedule of the time-switches, progress bar, events,
+  statistics (:data:`multipole.simulate.STATS_KEYS`), output sampling, non-finite check, errors;
+* a model that ``compile`` cannot build (any exception that is not a
+  :class:`~multipole.errors.MultipoleError`) runs on the ``numpy`` backend instead, visibly
+  (:func:`fallback`).
+
 Backends register like element libraries do: an entry point in the ``multipole.backends`` group
-names an object ``run(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress)``
-returning a :class:`multipole.simulate.Result`.  The bundled ones (``pyproject.toml``)::
+names the backend object.  The bundled ones (``pyproject.toml``)::
 
     [project.entry-points."multipole.backends"]
     numpy = "multipole.backends:numpy_backend"
@@ -16,9 +27,10 @@ that is not installed (numba) is refused with ``backend_unavailable``, an unknow
 from __future__ import annotations
 
 from importlib.metadata import entry_points
-from typing import Callable
+import warnings
+from typing import Callable, Protocol
 
-from ..errors import MultipoleError
+from ..errors import MultipoleError, MultipoleWarning
 
 #: the entry-point group backends register in
 GROUP = "multipole.backends"
@@ -69,9 +81,75 @@ def available() -> list[str]:
     return sorted(names)
 
 
-def numpy_backend(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step=float("inf"), progress=None):
-    """The default backend: generated Python code (:func:`multipole.codegen.compile_model`) run by
-    :func:`multipole.simulate.simulate` with scipy's integrators."""
-    from ..codegen import compile_model
-    from ..simulate import simulate
-    return simulate(compile_model(equations, outputs), t_end, dt_out, solver, rtol, atol, max_step, progress)
+class Integrator(Protocol):
+    """What a backend's own integrator implements (:class:`multipole.simulate.ScipyIntegrator` is
+    the default one, :class:`multipole.backends.numba_backend.NumbaIntegrator` a compiled one)."""
+
+    name: str               # stats["backend"]
+    solvers: tuple          # the solver names it accepts (besides auto)
+
+    def method(self, solver: str, auto: tuple | None) -> tuple[str, str]:
+        """``(method that runs, reason)`` for ``solver``; ``auto`` is ``(method, reason)`` from
+        :func:`multipole.simulate.choose_solver` when ``solver == "auto"``, else None."""
+
+    def integrate(self, model, method, t_grid, x0, schedule, sides, t_end, rtol, atol, max_step, bar):
+        """The states on ``t_grid`` [s] from ``x0`` at t = 0 as a :class:`multipole.simulate.Run`
+        (states, events ``[(t, k)]``, counters).  ``schedule`` ``[(t, k, side after)]`` and ``sides``
+        (at t = 0) are the crossings of the switching functions of time alone, which must end
+        segments; ``bar.update(t)`` reports progress.  Raises
+        :class:`multipole.simulate.SimulationError` (use ``simulate.step_failed``, ``simulate.chattering``)."""
+
+
+class Backend:
+    """A simulation backend: :meth:`compile` and, optionally, an :attr:`integrator`.
+
+    The model ``compile`` returns has what :func:`multipole.simulate.simulate` reads:
+    ``name``, ``x0``, ``state_names``, ``output_names``, ``output_units``, ``jac(t, x)`` (for
+    ``auto``), ``n_switches``, ``switch_text``, ``switches(t, x)``, ``switch_time_only``,
+    ``switch_rate``, ``switch_roots`` (the time-switches), ``outputs(t, x)`` or
+    ``outputs_on_grid(t_grid, states)``, and optionally ``compile_time``, ``translate_time`` [s]
+    and ``cached``; with the default integrator also what :class:`multipole.codegen.Model` has
+    (``rhs``, ``rhs_in_mode``, ``set_mode``, ...)."""
+
+    name = "numpy"
+    #: the backend's own integrator; None: scipy's (:data:`multipole.simulate.SCIPY`)
+    integrator: Integrator | None = None
+
+    def compile(self, equations, outputs):
+        """The model of ``equations`` with the named ``outputs``."""
+        from ..codegen import compile_model
+        return compile_model(equations, outputs)
+
+    def __call__(self, equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9,
+                 max_step=float("inf"), progress=None):
+        """Simulate ``equations`` from 0 to ``t_end`` [s]: :meth:`compile`, then the shared driver."""
+        from ..simulate import simulate
+        outputs = list(outputs)
+        try:
+            model = self.compile(equations, outputs)
+        except MultipoleError:
+            raise
+        except Exception as exc:       # a compiler's own failure (numba: TypingError, internal errors)
+            if self.name == "numpy":
+                raise
+            return fallback(self.name, equations, outputs, exc, t_end, dt_out, solver, rtol, atol, max_step, progress)
+        return simulate(model, t_end, dt_out, solver, rtol, atol, max_step, progress, integrator=self.integrator)
+
+
+def fallback(name, equations, outputs, exc, *options):
+    """Run on the numpy backend because backend ``name`` could not compile the model, visibly: a
+    :class:`~multipole.errors.MultipoleWarning` (one line on stderr from the CLI) names the reason,
+    and so do ``solver_reason`` and ``stats["backend"]`` (``numpy (fallback: reason)``)."""
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    why = f"{type(exc).__name__}: {first}"[:160]
+    warnings.warn(f"{equations.name}: the {name} backend could not compile this model ({why}); "
+                  f"running the numpy backend instead", MultipoleWarning, stacklevel=3)
+    result = get_backend("numpy")(equations, outputs, *options)
+    result.solver_reason += f"; {name} backend could not compile this model ({why}), ran numpy instead"
+    result.stats["backend"] = f"numpy (fallback: {why})"
+    return result
+
+
+#: the default backend: generated Python code (:func:`multipole.codegen.compile_model`) run by
+#: :func:`multipole.simulate.simulate` with scipy's integrators
+numpy_backend = Backend()

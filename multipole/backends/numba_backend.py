@@ -43,7 +43,6 @@ import os
 import sys
 import time
 import types
-import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -53,9 +52,8 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
 from .. import cache, codegen
-from ..errors import MultipoleError, MultipoleWarning
-from ..simulate import (MAX_EVENTS, Result, SimulationError, _Progress, check_finite, choose_solver, output_grid,
-                        solver_stats, time_switch_schedule)
+from ..simulate import MAX_EVENTS, Run, SimulationError, chattering, step_failed
+from . import Backend
 from . import numba_kernels as K
 
 #: explicit and implicit method of this backend, and what the other scipy names run as
@@ -458,124 +456,128 @@ def _compile(module, n: int, n_switches: int) -> bool:
     return misses == 0 and all(f.cache_hits for f in (module.rhs, module.jac, module.switches, module.outputs))
 
 
-class _JacobianView:
-    """What :func:`choose_solver` needs: ``x0`` and ``jac(t, x)`` backed by the compiled Jacobian."""
+class NumbaModel:
+    """The compiled model the shared driver runs (see :class:`multipole.backends.Backend`): the
+    generated module's cfuncs behind the model interface of :mod:`multipole.simulate`."""
 
-    def __init__(self, module, x0, n_work):
-        self.module, self.x0, self.w = module, np.asarray(x0, dtype=float), np.zeros(n_work)
-        n_sw = module.N_SWITCHES
-        if n_sw:                 # hold the switches on the side they are on at the start
-            g = np.zeros(n_sw)
-            module.switches.ctypes(0.0, self.x0.ctypes.data, g.ctypes.data, self.w.ctypes.data)
-            self.w[_W_HEAD:_W_HEAD + n_sw] = np.where(g < 0, -1.0, 1.0)
+    def __init__(self, equations, outputs, module, switch_text, x0, translate_time, compile_time, cached):
+        self.module, self.name, self.x0 = module, equations.name, x0
+        self.state_names, self.output_names = list(equations.state_names), list(outputs)
+        self.output_units = [getattr(equations, "units", {}).get(o, "") for o in outputs]
+        self.n_switches, self.switch_text = module.N_SWITCHES, switch_text
+        self.switch_time_only = np.asarray(module.SWITCH_TIME_ONLY, dtype=bool)
+        self.switch_rate, self.switch_roots = module.SWITCH_RATE, module.SWITCH_ROOTS
+        self.translate_time, self.compile_time, self.cached = translate_time, compile_time, cached
+        self.w0 = np.zeros(module.N_WORK)       # work array of the Jacobian at the start
+        if self.n_switches:          # hold the switches on the side they are on at the start
+            g = self.switches(0.0, x0)
+            self.w0[_W_HEAD:_W_HEAD + self.n_switches] = np.where(g < 0, -1.0, 1.0)
 
-    def jac(self, t, x):
+    def _call(self, fun, t, x, shape, w):
         x = np.ascontiguousarray(x, dtype=float)
-        out = np.zeros((len(x), len(x)))
-        self.module.jac.ctypes(float(t), x.ctypes.data, out.ctypes.data, self.w.ctypes.data)
+        out = np.zeros(shape)
+        fun.ctypes(float(t), x.ctypes.data, out.ctypes.data, w.ctypes.data)
         return out
 
+    def jac(self, t, x):
+        """d(rhs)/dx at (t, x), the switches held on their sides at the start (for ``auto``)."""
+        return self._call(self.module.jac, t, x, (len(x), len(x)), self.w0)
 
-_STATUS = {K.STEP_TOO_SMALL: ("step_failed", "the step size fell below the resolution of t",
-                              "try solver auto or Radau, or tighter tolerances"),
-           K.NOT_FINITE: ("not_finite", "the solution became infinite or NaN",
-                          "check parameters (zero inertia? negative stiffness?) and the check report"),
-           K.TOO_MANY_EVENTS: ("chattering", f"more than {MAX_EVENTS} switching events",
-                               "regularise the law or check the model")}
+    def switches(self, t, x):
+        """The switching functions at (t, x)."""
+        return self._call(self.module.switches, t, x, self.n_switches, np.zeros(self.module.N_WORK))
+
+    def outputs(self, t, x):
+        return self._call(self.module.outputs, t, x, len(self.output_names), np.zeros(self.module.N_WORK))
+
+    def outputs_on_grid(self, t_grid, states):
+        """The outputs on the grid, compiled; after a run they read its work array (loop guesses)."""
+        Y = np.zeros((len(t_grid), len(self.output_names)))
+        K.sample(self.module.outputs.address, getattr(self, "w_run", np.zeros(self.module.N_WORK)), t_grid,
+                 np.ascontiguousarray(states), Y)
+        return Y
 
 
-def run(equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9, max_step=np.inf,
-        progress=None) -> Result:
-    """Simulate ``equations`` from 0 to ``t_end`` [s] with compiled code; see the module docstring."""
-    if t_end <= 0:
-        raise SimulationError("bad_time", f"t_end must be positive, got {t_end}")
-    if solver != "auto" and solver not in METHODS:
-        raise SimulationError("unknown_solver", f"unknown solver {solver!r}",
-                              f"use auto or one of {', '.join(METHODS)}")
-    outputs = list(outputs)
-    start = time.perf_counter()
-    try:
+_STATUS = {K.STEP_TOO_SMALL: "the step size fell below the resolution of t",
+           K.NOT_FINITE: "the solution became infinite or NaN"}
+
+
+class NumbaIntegrator:
+    """The compiled integrator loops of :mod:`numba_kernels` (Dormand–Prince 5(4), Radau IIA)."""
+
+    name = "numba"
+    solvers = tuple(METHODS)
+
+    def method(self, solver, auto) -> tuple[str, str]:
+        """This backend's method for the requested ``solver`` and the reason, for ``solver_reason``."""
+        if auto is not None:
+            method = METHODS.get(auto[0], "Radau")
+            return method, f"{auto[1]}; compiled {_DESCRIPTION[method]} (numba)"
+        method = METHODS[solver]
+        if method == solver:
+            return method, f"chosen by the user; compiled {_DESCRIPTION[method]} (numba)"
+        return method, f"{solver} requested; the numba backend runs it as {method} ({_DESCRIPTION[method]})"
+
+    def integrate(self, model, method, t_grid, x0, schedule, sides, t_end, rtol, atol, max_step, bar) -> Run:
+        module, n = model.module, len(x0)
+        rtol = max(rtol, 100 * np.finfo(float).eps)
+        work = _Work(n, model.n_switches, module.N_WORK, t_grid, x0, t_end, rtol, atol, max_step)
+        work.schedule(model.switch_time_only, schedule, sides)
+        funcs = _cfuncs(module) + (method == "Radau",)
+        chunk = PROGRESS_CHUNK if bar.enabled else np.iinfo(np.int64).max
+        if n:
+            try:
+                while work.iw[K.I_STATUS] == K.RUNNING:
+                    K.integrate(*funcs, *work.args(chunk))
+                    bar.update(work.fs[K.F_T])
+            except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+                raise SimulationError("step_failed",
+                                      f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}") from None
+            status, t = int(work.iw[K.I_STATUS]), float(work.fs[K.F_T])
+            if status == K.TOO_MANY_EVENTS:
+                last = int(work.iw[K.I_NEV]) - 1
+                raise chattering(float(work.ev_t[last]), model.switch_text[int(work.ev_k[last])])
+            if status in _STATUS:
+                msg = f"{method} (numba) stopped at t = {t:.6g} s: {_STATUS[status]}"
+                if work.w[2]:
+                    msg += f" (Newton's method failed {int(work.w[2])} times in an algebraic loop)"
+                if status == K.NOT_FINITE:
+                    raise SimulationError("not_finite", msg, "check parameters (zero inertia? negative "
+                                          "stiffness?) and the check report")
+                raise step_failed(model, msg)
+        model.w_run = work.w
+        iw = work.iw
+        counters = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
+                    "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),
+                    "rhs_calls": int(iw[K.I_NFEV]), "jac_calls": int(iw[K.I_NJEV]),
+                    "newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1]),
+                    "newton_failures": int(work.w[2]), "collocation_iterations": int(iw[K.I_NEWTON_IT])}
+        events = [(float(work.ev_t[i]), int(work.ev_k[i])) for i in range(int(iw[K.I_NEV]))]
+        return Run(work.X, events, counters)
+
+
+class NumbaBackend(Backend):
+    """``--backend numba``: the model's functions and the integrator loop compiled by numba."""
+
+    name = "numba"
+    integrator = NumbaIntegrator()
+
+    def compile(self, equations, outputs) -> NumbaModel:
+        """Translate (remembered per structure), load or compile the module and the loops; a
+        :class:`CodegenMismatch` or numba's own errors make the caller fall back to numpy."""
+        outputs = list(outputs)
+        mine = getattr(equations, "_numba_model", None)
+        if mine is not None and mine[0] == tuple(outputs):
+            return mine[1]
+        start = time.perf_counter()
         source, switch_text = translate(equations, outputs)
-    except CodegenMismatch as exc:
-        return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
-    translate_time = time.perf_counter() - start
-    n = len(equations.states)
-    x0 = _initial_state(equations)
-    try:
+        translate_time = time.perf_counter() - start
         module = load(source)
-        choices = equations.__dict__.setdefault("_numba_methods", {})   # the choice, once per run setting
-        if (solver, t_end, rtol) not in choices:
-            choices[(solver, t_end, rtol)] = _method(module, solver, x0, t_end, rtol)
-        method, reason = choices[(solver, t_end, rtol)]
-        cached = _compile(module, n, len(switch_text))
-    except MultipoleError:
-        raise
-    except Exception as exc:       # numba raises NumbaError, but also internal AssertionErrors
-        return _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc)
-    compile_time = time.perf_counter() - start
-
-    grid = output_grid(t_end, dt_out, 1 + n + len(outputs))
-    rtol = max(rtol, 100 * np.finfo(float).eps)
-    work = _Work(n, len(switch_text), module.N_WORK, grid, x0, t_end, rtol, atol, max_step)
-    if any(module.SWITCH_TIME_ONLY):       # found once per horizon (sampling takes milliseconds)
-        schedules = equations.__dict__.setdefault("_numba_schedules", {})
-        if t_end not in schedules:
-            schedules[t_end] = time_switch_schedule(_switches_of_time(module, x0), module.SWITCH_TIME_ONLY,
-                                                    module.SWITCH_RATE, t_end, switch_text, module.SWITCH_ROOTS)
-        work.schedule(module.SWITCH_TIME_ONLY, *schedules[t_end])
-    funcs = _cfuncs(module) + (method == "Radau",)
-    if progress is None:
-        progress = sys.stderr.isatty()
-    bar = _Progress(t_end, progress)
-    chunk = PROGRESS_CHUNK if progress else np.iinfo(np.int64).max
-    begin = time.perf_counter()
-    if n:
-        try:
-            while work.iw[K.I_STATUS] == K.RUNNING:
-                K.integrate(*funcs, *work.args(chunk))
-                bar.update(work.fs[K.F_T])
-        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-            raise SimulationError("step_failed", f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}") from None
-        status = int(work.iw[K.I_STATUS])
-        if status in _STATUS:
-            code, msg, fix = _STATUS[status]
-            if work.w[2]:
-                msg += f" (Newton's method failed {int(work.w[2])} times in an algebraic loop)"
-            raise SimulationError(code, f"{method} (numba) stopped at t = {work.fs[K.F_T]:.6g} s: {msg}", fix)
-    else:
-        work.X[:] = np.zeros((grid.size, 0))
-    bar.close()
-    newton = {"newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1]),   # before the outputs
-              "newton_failures": int(work.w[2])}
-    Y = np.zeros((grid.size, len(outputs)))
-    if outputs:
-        K.sample(module.outputs.address, work.w, grid, work.X, Y)
-    run_time = time.perf_counter() - begin
-    check_finite(grid, work.X, Y, list(equations.state_names), outputs)
-    iw = work.iw
-    stats = solver_stats({"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
-                          "njev": int(iw[K.I_NJEV]), "nlu": int(iw[K.I_NLU]), "segments": int(iw[K.I_SEGMENTS]),
-                          "events": int(iw[K.I_NEV]), "rhs_calls": int(iw[K.I_NFEV]), "jac_calls": int(iw[K.I_NJEV]),
-                          **newton, "collocation_iterations": int(iw[K.I_NEWTON_IT]),
-                          "translate_time": translate_time, "compile_time": compile_time, "compile_cached": cached,
-                          "model_cached": cached, "run_time": run_time, "wall_time": run_time, "backend": "numba"})
-    events = [(float(work.ev_t[i]), switch_text[int(work.ev_k[i])]) for i in range(int(iw[K.I_NEV]))]
-    out = {name: Y[:, k].copy() for k, name in enumerate(outputs)}
-    units = {o: getattr(equations, "units", {}).get(o, "") for o in outputs}
-    return Result(grid, out, work.X, list(equations.state_names), method, reason, stats, events, units=units)
-
-
-def _switches_of_time(module, x):
-    """``g(t)``: the model's switching functions at time t [s] and state ``x`` (for the functions of
-    time alone, whose crossings are found before the run)."""
-    x = np.ascontiguousarray(x, dtype=float)
-    w = np.zeros(module.N_WORK)
-    out = np.zeros(module.N_SWITCHES)
-
-    def g(t):
-        module.switches.ctypes(float(t), x.ctypes.data, out.ctypes.data, w.ctypes.data)
-        return out.copy()
-    return g
+        cached = _compile(module, len(equations.states), len(switch_text))
+        model = NumbaModel(equations, outputs, module, switch_text, _initial_state(equations), translate_time,
+                           time.perf_counter() - start, cached)
+        equations._numba_model = (tuple(outputs), model)
+        return model
 
 
 def _initial_state(equations) -> np.ndarray:
@@ -586,29 +588,5 @@ def _initial_state(equations) -> np.ndarray:
     return x0.copy()
 
 
-def _method(module, solver, x0, t_end, rtol) -> tuple[str, str]:
-    """This backend's method for the requested ``solver`` and the reason, for ``solver_reason``."""
-    if solver == "auto":
-        chosen, why = choose_solver(_JacobianView(module, x0, module.N_WORK), t_end, rtol)
-        method = METHODS.get(chosen, "Radau")
-        return method, f"{why}; compiled {_DESCRIPTION[method]} (numba)"
-    method = METHODS[solver]
-    if method == solver:
-        return method, f"chosen by the user; compiled {_DESCRIPTION[method]} (numba)"
-    return method, f"{solver} requested; the numba backend runs it as {method} ({_DESCRIPTION[method]})"
-
-
-def _fallback(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress, exc) -> Result:
-    """Run on the numpy backend when numba cannot compile the model, visibly: a
-    :class:`~multipole.errors.MultipoleWarning` (one line on stderr from the CLI) names the reason,
-    and so do ``solver_reason`` and ``stats["backend"]`` (``numpy (fallback: reason)``)."""
-    from . import get_backend
-    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    why = f"{type(exc).__name__}: {first}"[:160]
-    warnings.warn(f"{equations.name}: the numba backend could not compile this model ({why}); "
-                  f"running the numpy backend instead", MultipoleWarning, stacklevel=3)
-    result = get_backend("numpy")(equations, outputs, t_end, dt_out, solver, rtol, atol, max_step, progress)
-    result.solver_reason += f"; numba backend could not compile this model ({why}), ran numpy instead"
-    result.stats["backend"] = f"numpy (fallback: {why})"
-    return result
-
+#: the backend object the ``multipole.backends`` entry point ``numba`` names
+run = NumbaBackend()

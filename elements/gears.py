@@ -35,8 +35,8 @@ import math
 
 import sympy as sp
 
-from multipole import (LAW_Q, TF, C, ElementType, ModelError, Network, Param, Primitive, Quantity, R, Tap, junction_a,
-                       junction_b, register)
+from multipole import (LAW_Q, TF, C, ModelError, Network, Param, Primitive, Quantity, R, Tap, element, junction_a,
+                       junction_b)
 
 from .basic import inertia
 
@@ -154,6 +154,39 @@ class MissingCrossCoupling(Primitive):
         return []
 
 
+# -- declarations ---------------------------------------------------------------------------------
+
+_LAW_DOC = ("a number or an expression of the mesh phase q = z1*phi1 [rad] (one tooth engagement = 2*pi), "
+            "e.g. 'c0*(1 + 0.2*cos(q))', or of the time t (parametric excitation, e.g. 'c0*(1 + 0.2*cos(W*t))'), "
+            "or a table over one engagement, symmetric about its middle: "
+            "'interp(acos(cos(q)), [1.1, 1.4], [c_single, c_double])'")
+
+SPUR_PARAMS = [
+    Param("r1", "m", "operating pitch radius of wheel 1 (port a)", positive=True),
+    Param("r2", "m", "operating pitch radius of wheel 2 (port b); the ring gear's radius if internal", positive=True),
+    Param("level", "", "ideal (rigid TF pair), elastic (mesh spring along the circumference), normal (normal "
+          "spring + tangential tooth friction)", "ideal", "choice", LEVELS),
+    Param("internal", "", "wheel 2 is an internal ring gear: the shafts turn the same way, i = +r2/r1", False,
+          "bool"),
+    Param("c", "N/m", "elastic: circumferential mesh stiffness, " + _LAW_DOC, None, "law", law_var="q",
+          positive=True),
+    Param("c_n", "N/m", "normal: tooth normal stiffness, " + _LAW_DOC, None, "law", law_var="q", positive=True),
+    Param("d", "N*s/m", "elastic/normal: mesh damping in parallel with the mesh spring", 0.0),
+    Param("x0", "m", "elastic/normal: initial mesh deflection (mounting error, preload)", 0.0),
+    Param("z1", "-", "teeth of wheel 1; the mesh phase is q = z1*phi1 (normal: required unless s is given)", None,
+          positive=True),
+    Param("phase0", "rad", "initial mesh phase q(0)", 0.0),
+    Param("alpha", "rad", "normal: operating pressure angle (involute: constant)", math.radians(20.0)),
+    Param("s", "m", "normal: contact point on the line of action, measured from the pitch point towards wheel 2's "
+          "tangent point, as an expression of the mesh phase q; default: involute single contact "
+          "(r1*cos(alpha)/z1)*atan2(sin(q), cos(q))", None, "law", law_var="q"),
+    Param("mu", "-", "normal: Coulomb tooth friction coefficient, F_t = mu*|F_n|*tanh(v_t/v_reg) with F_n the "
+          "tooth spring force", None, nonnegative=True),
+    Param("v_reg", "m/s", "normal: sliding velocity of the Coulomb regularisation", 1e-3, positive=True),
+    Param("d_t", "N*s/m", "normal: viscous tooth friction in the tangential branch", None),
+]
+
+
 # -- the spur gear stage -----------------------------------------------------------------------
 
 def default_contact_position(r1, alpha, z1):
@@ -163,8 +196,21 @@ def default_contact_position(r1, alpha, z1):
     return r1 * sp.cos(alpha) / z1 * sp.atan2(sp.sin(q), sp.cos(q))
 
 
-def spur_stage(r1, r2, level="ideal", internal=False, c=None, c_n=None, d=0.0, x0=0.0, z1=None,
-               phase0=0.0, alpha=math.radians(20.0), s=None, mu=None, v_reg=1e-3, d_t=None):
+@element("spur_stage", "spur gear stage (Weber §5): ideal i = -r2/r1 (internal +r2/r1), elastic mesh, or "
+         "normal/tangential split with tooth friction",
+         {"a": "shaft 1 (rotational): torque on the stage [N*m], angular velocity [rad/s]",
+          "b": "shaft 2 (rotational)"},
+         SPUR_PARAMS,
+         {"force": "N: mesh force (circumferential; normal level: tooth normal force), positive when a drives b",
+          "deflection": "m: mesh spring deflection (state q; 0 for ideal)",
+          "force_u": "N: circumferential force at wheel 1, M1/r1 when massless",
+          "stiffness": "N/m: current mesh stiffness (elastic, normal)",
+          "phase": "rad: mesh phase q = z1*phi1 (variable stiffness, normal)",
+          "sliding_velocity": "m/s: sliding velocity of flank 1 relative to flank 2 (normal)",
+          "friction_force": "N: tooth friction force against the sliding of flank 1 (normal)",
+          "loss": "W: friction loss F_t*v_t >= 0 (normal)",
+          "contact_position": "m: contact point on the line of action from the pitch point (normal)"})
+def spur_stage(r1, r2, level, internal, c, c_n, d, x0, z1, phase0, alpha, s, mu, v_reg, d_t):
     """Build the spur gear stage multipole (see the module docstring for the structure).
 
     Radii in m, stiffnesses in N/m, damping in N·s/m, angles in rad.  Level ``normal`` without a
@@ -194,8 +240,7 @@ def spur_stage(r1, r2, level="ideal", internal=False, c=None, c_n=None, d=0.0, x
     params = {"r1": r1, "r2": r2}
     children: dict = {"wheel1": wheel(_R1), "wheel2": wheel(_R2, sense)}
     connections: list = []
-    quantities = {"force_u": Quantity(lambda V: -V.e("wheel1.b"), "N",
-                                      "circumferential force at wheel 1, M1/r1 when massless")}
+    quantities = {"force_u": Quantity(lambda V: -V.e("wheel1.b"))}
     signals = {}
     uses_phase = depends_on_phase(c) or depends_on_phase(c_n) or (level == "normal" and
                                                                   (s is None or depends_on_phase(s)))
@@ -206,14 +251,13 @@ def spur_stage(r1, r2, level="ideal", internal=False, c=None, c_n=None, d=0.0, x
         connections += [["shaft1.tap", "angle1.p"], ["shaft1.w", "wheel1.a"]]
         signals["phi"] = "angle1.q"
         port_a = "shaft1.a"
-        quantities["phase"] = Quantity(lambda V: V.param("z1") * V.x("angle1.q"), "rad",
-                                       "mesh phase q = z1*phi1")
+        quantities["phase"] = Quantity(lambda V: V.param("z1") * V.x("angle1.q"))
     else:
         port_a = "wheel1.a"
     if level == "ideal":
         connections.append(["wheel1.b", "wheel2.b"])
-        quantities["force"] = Quantity(lambda V: -V.e("wheel1.b"), "N", "circumferential mesh force")
-        quantities["deflection"] = Quantity(lambda V: sp.Integer(0), "m", "mesh deflection (rigid: 0)")
+        quantities["force"] = Quantity(lambda V: -V.e("wheel1.b"))
+        quantities["deflection"] = Quantity(lambda V: sp.Integer(0))
         body = None
     elif level == "elastic":
         if c is None:
@@ -222,8 +266,8 @@ def spur_stage(r1, r2, level="ideal", internal=False, c=None, c_n=None, d=0.0, x
         params.update({"d": d, "x0": x0})
         cross_coupling(children, connections, "contact", ("u1", "u2"), _stiffness(c, _C, params), d)
         connections += [["wheel1.b", "contact.u1"], ["wheel2.b", "contact.u2"]]
-        quantities["force"] = Quantity(lambda V: V.e("contact.u1"), "N", "circumferential mesh force")
-        quantities["deflection"] = Quantity(lambda V: V.x("spring.q"), "m", "mesh deflection along the circumference")
+        quantities["force"] = Quantity(lambda V: V.e("contact.u1"))
+        quantities["deflection"] = Quantity(lambda V: V.x("spring.q"))
         body = "spring"
     else:
         body = "spring"
@@ -233,8 +277,7 @@ def spur_stage(r1, r2, level="ideal", internal=False, c=None, c_n=None, d=0.0, x
         value, name = (c, "c") if level == "elastic" else (c_n, "c_n")
         law = mesh_phase_var(value)
         quantities["stiffness"] = Quantity(
-            (lambda V: _resolver(V)(law)) if varies(value) else (lambda V: V.param(name)),
-            "N/m", "current mesh stiffness")
+            (lambda V: _resolver(V)(law)) if varies(value) else (lambda V: V.param(name)))
     ports = {"a": port_a, "b": "wheel2.a"}
     return Network("spur_stage", children, connections, ports, params=params, quantities=quantities,
                    body=body, signals=signals,
@@ -291,20 +334,37 @@ def _normal_level(children, connections, params, quantities, signals, r1, r2, se
             "give {element} a tooth-friction law: mu (with v_reg) or d_t")
     else:
         children["friction"] = R(law=sp.Add(*laws), dom=MECH)
-        quantities["sliding_velocity"] = Quantity(lambda V: V.f("friction.p"), "m/s",
-                                                  "sliding velocity of flank 1 relative to flank 2")
-        quantities["friction_force"] = Quantity(lambda V: V.e("friction.p"), "N",
-                                                "tooth friction force, acting on flank 1 against its sliding")
-        quantities["loss"] = Quantity(lambda V: V.e("friction.p") * V.f("friction.p"), "W", "friction loss")
-    quantities["force"] = Quantity(lambda V: V.e("contact.n1"), "N", "tooth normal force")
-    quantities["deflection"] = Quantity(lambda V: V.x("spring.q"), "m", "tooth deflection along the normal")
-    quantities["contact_position"] = Quantity(lambda V, s_phi=s_phi: _resolver(V)(s_phi), "m",
-                                              "contact point on the line of action, from the pitch point")
+        quantities["sliding_velocity"] = Quantity(lambda V: V.f("friction.p"))
+        quantities["friction_force"] = Quantity(lambda V: V.e("friction.p"))
+        quantities["loss"] = Quantity(lambda V: V.e("friction.p") * V.f("friction.p"))
+    quantities["force"] = Quantity(lambda V: V.e("contact.n1"))
+    quantities["deflection"] = Quantity(lambda V: V.x("spring.q"))
+    quantities["contact_position"] = Quantity(lambda V, s_phi=s_phi: _resolver(V)(s_phi))
 
 
 # -- gear trains -------------------------------------------------------------------------------
 
-def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None, z1=None):
+@element("gear_train", "spur stages in series (lists r1, r2; shared level, c, d); overall ratio = product of the "
+         "stage ratios",
+         {"a": "input shaft (rotational)", "b": "output shaft (rotational)"},
+         [Param("r1", "m", "pitch radii of the driving wheels, one per stage", kind="numbers", positive=True,
+                max_items=MAX_STAGES),
+          Param("r2", "m", "pitch radii of the driven wheels, one per stage", kind="numbers", positive=True,
+                max_items=MAX_STAGES),
+          Param("level", "", "ideal or elastic (all stages)", "ideal", "choice", ("ideal", "elastic")),
+          Param("internal", "", "all stages internal meshes", False, "bool"),
+          Param("c", "N/m", "elastic: mesh stiffness of every stage, " + _LAW_DOC, None, "law", law_var="q",
+                positive=True),
+          Param("d", "N*s/m", "elastic: mesh damping of every stage", 0.0),
+          Param("J", "kg*m^2", "inertias of the intermediate shafts (n-1 values); massless if omitted", None,
+                "numbers", positive=True),
+          Param("z1", "-", "teeth of the driving wheel of each stage (n values); the mesh phase of stage k is "
+                "q = z1[k]*phi of its input shaft", None, "numbers", positive=True)],
+         {"ratio": "-: overall ratio omega_a/omega_b", "s<k>.force": "N: mesh force of stage k",
+          "s<k>.deflection": "m: mesh deflection of stage k (elastic)",
+          "s<k>.stiffness": "N/m: current mesh stiffness of stage k (elastic)",
+          "s<k>.phase": "rad: mesh phase of stage k (stiffness law of q)"})
+def gear_train(r1, r2, level, internal, c, d, J, z1):
     """Spur stages in series: stage k has radii r1[k], r2[k] [m]; ``J`` (optional, kg·m²) are the
     inertias of the n−1 intermediate shafts (massless without); ``z1`` (optional) the teeth of each
     stage's driving wheel, so that a stiffness law of the mesh phase q runs at each stage's own
@@ -330,77 +390,5 @@ def gear_train(r1, r2, level="ideal", internal=False, c=None, d=0.0, J=None, z1=
     sense = 1 if internal else -1
     ratio = math.prod(sense * b / a for a, b in zip(r1, r2))   # stage ratio -r2/r1, internal +r2/r1
     return Network("gear_train", children, connections, {"a": "s1.a", "b": f"s{n}.b"},
-                   quantities={"ratio": Quantity(lambda V: sp.Float(ratio), "-", "overall ratio omega_a/omega_b")},
+                   quantities={"ratio": Quantity(lambda V: sp.Float(ratio))},
                    doc=f"{n}-stage gear train")
-
-
-# -- catalogue ---------------------------------------------------------------------------------
-
-_LAW_DOC = ("a number or an expression of the mesh phase q = z1*phi1 [rad] (one tooth engagement = 2*pi), "
-            "e.g. 'c0*(1 + 0.2*cos(q))', or of the time t (parametric excitation, e.g. 'c0*(1 + 0.2*cos(W*t))'), "
-            "or a table over one engagement, symmetric about its middle: "
-            "'interp(acos(cos(q)), [1.1, 1.4], [c_single, c_double])'")
-
-SPUR_PARAMS = [
-    Param("r1", "m", "operating pitch radius of wheel 1 (port a)", positive=True),
-    Param("r2", "m", "operating pitch radius of wheel 2 (port b); the ring gear's radius if internal", positive=True),
-    Param("level", "", "ideal (rigid TF pair), elastic (mesh spring along the circumference), normal (normal "
-          "spring + tangential tooth friction)", "ideal", "choice", LEVELS),
-    Param("internal", "", "wheel 2 is an internal ring gear: the shafts turn the same way, i = +r2/r1", False,
-          "bool"),
-    Param("c", "N/m", "elastic: circumferential mesh stiffness, " + _LAW_DOC, None, "law", law_var="q",
-          positive=True),
-    Param("c_n", "N/m", "normal: tooth normal stiffness, " + _LAW_DOC, None, "law", law_var="q", positive=True),
-    Param("d", "N*s/m", "elastic/normal: mesh damping in parallel with the mesh spring", 0.0),
-    Param("x0", "m", "elastic/normal: initial mesh deflection (mounting error, preload)", 0.0),
-    Param("z1", "-", "teeth of wheel 1; the mesh phase is q = z1*phi1 (normal: required unless s is given)", None,
-          positive=True),
-    Param("phase0", "rad", "initial mesh phase q(0)", 0.0),
-    Param("alpha", "rad", "normal: operating pressure angle (involute: constant)", math.radians(20.0)),
-    Param("s", "m", "normal: contact point on the line of action, measured from the pitch point towards wheel 2's "
-          "tangent point, as an expression of the mesh phase q; default: involute single contact "
-          "(r1*cos(alpha)/z1)*atan2(sin(q), cos(q))", None, "law", law_var="q"),
-    Param("mu", "-", "normal: Coulomb tooth friction coefficient, F_t = mu*|F_n|*tanh(v_t/v_reg) with F_n the "
-          "tooth spring force", None, nonnegative=True),
-    Param("v_reg", "m/s", "normal: sliding velocity of the Coulomb regularisation", 1e-3, positive=True),
-    Param("d_t", "N*s/m", "normal: viscous tooth friction in the tangential branch", None),
-]
-
-register(ElementType(
-    "spur_stage", lambda **kw: spur_stage(**kw),
-    "spur gear stage (Weber §5): ideal i = -r2/r1 (internal +r2/r1), elastic mesh, or normal/tangential "
-    "split with tooth friction",
-    {"a": "shaft 1 (rotational): torque on the stage [N*m], angular velocity [rad/s]",
-     "b": "shaft 2 (rotational)"},
-    SPUR_PARAMS,
-    {"force": "N: mesh force (circumferential; normal level: tooth normal force), positive when a drives b",
-     "deflection": "m: mesh spring deflection (state q; 0 for ideal)",
-     "force_u": "N: circumferential force at wheel 1",
-     "stiffness": "N/m: current mesh stiffness (elastic, normal)",
-     "phase": "rad: mesh phase q = z1*phi1 (variable stiffness, normal)",
-     "sliding_velocity": "m/s: sliding velocity of flank 1 relative to flank 2 (normal)",
-     "friction_force": "N: tooth friction force against the sliding of flank 1 (normal)",
-     "loss": "W: friction loss F_t*v_t >= 0 (normal)",
-     "contact_position": "m: contact point on the line of action from the pitch point (normal)"}))
-
-register(ElementType(
-    "gear_train", lambda **kw: gear_train(**kw),
-    "spur stages in series (lists r1, r2; shared level, c, d); overall ratio = product of the stage ratios",
-    {"a": "input shaft (rotational)", "b": "output shaft (rotational)"},
-    [Param("r1", "m", "pitch radii of the driving wheels, one per stage", kind="numbers", positive=True,
-           max_items=MAX_STAGES),
-     Param("r2", "m", "pitch radii of the driven wheels, one per stage", kind="numbers", positive=True,
-           max_items=MAX_STAGES),
-     Param("level", "", "ideal or elastic (all stages)", "ideal", "choice", ("ideal", "elastic")),
-     Param("internal", "", "all stages internal meshes", False, "bool"),
-     Param("c", "N/m", "elastic: mesh stiffness of every stage, " + _LAW_DOC, None, "law", law_var="q",
-           positive=True),
-     Param("d", "N*s/m", "elastic: mesh damping of every stage", 0.0),
-     Param("J", "kg*m^2", "inertias of the intermediate shafts (n-1 values); massless if omitted", None,
-           "numbers", positive=True),
-     Param("z1", "-", "teeth of the driving wheel of each stage (n values); the mesh phase of stage k is "
-           "q = z1[k]*phi of its input shaft", None, "numbers", positive=True)],
-    {"ratio": "-: overall ratio omega_a/omega_b", "s<k>.force": "N: mesh force of stage k",
-     "s<k>.deflection": "m: mesh deflection of stage k (elastic)",
-     "s<k>.stiffness": "N/m: current mesh stiffness of stage k (elastic)",
-     "s<k>.phase": "rad: mesh phase of stage k (stiffness law of q)"}))

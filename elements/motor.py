@@ -33,25 +33,41 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import GY, I, R, ElementType, Network, Param, Quantity, Se, junction_b, register
+import multipole as mp
+from multipole import GY, I, Network, Param, Quantity, Se, element, junction_b
 
 from .piezo import literal_zero   # shared "leave the part out" rule of this library
 
 _k, _R, _L, _J, _d = (sp.Symbol(n) for n in ("k", "R", "L", "J", "d"))
 
 
-def dc_motor(k, R_, L, J, d=0.0, omega0=0.0, i0=0.0, grounded=True) -> Network:
+@element("dc_motor", "permanent-magnet DC motor: U = R*i + L*i' + k*omega, J*omega' = k*i - d*omega + M_shaft",
+         {"elec": "electrical: positive terminal (current in drives the motor forward)",
+          "elec_n": "electrical: negative terminal, only with grounded: false (else tied to 0 V inside)",
+          "shaft": "rotational: the shaft; torque acting on the motor, rotor speed"},
+         [Param("k", "N*m/A", "torque constant (= back-emf constant in V*s/rad)", nonzero=True),
+          Param("R", "Ohm", "armature resistance", nonnegative=True),
+          Param("L", "H", "armature inductance (literal 0: current follows the voltage)", nonnegative=True),
+          Param("J", "kg*m^2", "rotor inertia (literal 0: massless rotor)", nonnegative=True),
+          Param("d", "N*m*s/rad", "viscous friction of the rotor bearings", 0.0, nonnegative=True),
+          Param("omega0", "rad/s", "initial angular velocity", 0.0),
+          Param("i0", "A", "initial armature current", 0.0),
+          Param("grounded", "", "negative terminal at 0 V inside the motor (false: port elec_n)", True, "bool")],
+         {"omega": "rad/s: rotor angular velocity", "current": "A: armature current into elec",
+          "torque": "N*m: electromagnetic torque k*i on the rotor", "back_emf": "V: induced voltage k*omega",
+          "voltage": "V: terminal voltage e(elec) - e(elec_n)"})
+def dc_motor(k, R, L, J, d, omega0, i0, grounded) -> Network:
     """DC motor with ports ``elec`` (+), ``elec_n`` (−, only if not ``grounded``) and ``shaft``.
 
-    ``k`` [N·m/A] torque (= back-emf) constant, ``R_`` [Ω] armature resistance, ``L`` [H] armature
+    ``k`` [N·m/A] torque (= back-emf) constant, ``R`` [Ω] armature resistance, ``L`` [H] armature
     inductance, ``J`` [kg·m²] rotor inertia, ``d`` [N·m·s/rad] viscous friction, ``omega0`` [rad/s]
     and ``i0`` [A] initial speed and current.
     """
     loop = ["p", "n", "res", "gy"]
     rotor = ["gy", "shaft"]
-    children = {"res": R(r=_R, dom="electrical"), "gy": GY(_k, "electrical", "rotational")}
+    children = {"res": mp.R(r=_R, dom="electrical"), "gy": GY(_k, "electrical", "rotational")}
     connections = [["loop.res", "res.p"], ["loop.gy", "gy.a"], ["gy.b", "rotor.gy"]]
-    params = {"k": k, "R": R_}
+    params = {"k": k, "R": R}
     if not literal_zero(L):
         loop.append("coil")
         children["coil"] = I(J=_L, dom="electrical", p0=_L * sp.Symbol("i0"))
@@ -64,7 +80,7 @@ def dc_motor(k, R_, L, J, d=0.0, omega0=0.0, i0=0.0, grounded=True) -> Network:
         params.update(J=J, omega0=omega0)
     if not literal_zero(d):
         rotor.append("friction")
-        children["friction"] = R(r=_d, dom="rotational")
+        children["friction"] = mp.R(r=_d, dom="rotational")
         connections.append(["rotor.friction", "friction.p"])
         params["d"] = d
     # series loop: i into p, out of n, through every branch; e_p - e_n = sum of the branch voltages
@@ -77,31 +93,11 @@ def dc_motor(k, R_, L, J, d=0.0, omega0=0.0, i0=0.0, grounded=True) -> Network:
     else:
         ports["elec_n"] = "loop.n"
     quantities = {
-        "omega": Quantity(lambda V: V.f("rotor.shaft"), "rad/s", "rotor angular velocity"),
-        "current": Quantity(lambda V: V.f("loop.p"), "A", "armature current into elec"),
-        "torque": Quantity(lambda V: -V.e("gy.b"), "N*m", "electromagnetic torque k*i on the rotor"),
-        "back_emf": Quantity(lambda V: V.e("gy.a"), "V", "induced voltage k*omega"),
-        "voltage": Quantity(lambda V: V.e("loop.p") - V.e("loop.n"), "V", "terminal voltage"),
+        "omega": Quantity(lambda V: V.f("rotor.shaft")),
+        "current": Quantity(lambda V: V.f("loop.p")),
+        "torque": Quantity(lambda V: -V.e("gy.b")),
+        "back_emf": Quantity(lambda V: V.e("gy.a")),
+        "voltage": Quantity(lambda V: V.e("loop.p") - V.e("loop.n")),
     }
     return Network("dc_motor", children, connections, ports, params=params, quantities=quantities,
                    doc="DC motor: gyrator k with R, L (electrical) and J, d (rotor)")
-
-
-register(ElementType(
-    "dc_motor",
-    lambda k, R, L, J, d, omega0, i0, grounded: dc_motor(k, R, L, J, d, omega0, i0, grounded),
-    "permanent-magnet DC motor: U = R*i + L*i' + k*omega, J*omega' = k*i - d*omega + M_shaft",
-    {"elec": "electrical: positive terminal (current in drives the motor forward)",
-     "elec_n": "electrical: negative terminal, only with grounded: false (else tied to 0 V inside)",
-     "shaft": "rotational: the shaft; torque acting on the motor, rotor speed"},
-    [Param("k", "N*m/A", "torque constant (= back-emf constant in V*s/rad)", nonzero=True),
-     Param("R", "Ohm", "armature resistance", nonnegative=True),
-     Param("L", "H", "armature inductance (literal 0: current follows the voltage)", nonnegative=True),
-     Param("J", "kg*m^2", "rotor inertia (literal 0: massless rotor)", nonnegative=True),
-     Param("d", "N*m*s/rad", "viscous friction of the rotor bearings", 0.0, nonnegative=True),
-     Param("omega0", "rad/s", "initial angular velocity", 0.0),
-     Param("i0", "A", "initial armature current", 0.0),
-     Param("grounded", "", "negative terminal at 0 V inside the motor (false: port elec_n)", True, "bool")],
-    {"omega": "rad/s: rotor angular velocity", "current": "A: armature current into elec",
-     "torque": "N*m: electromagnetic torque k*i", "back_emf": "V: induced voltage k*omega",
-     "voltage": "V: terminal voltage e(elec) - e(elec_n)"}))

@@ -53,7 +53,8 @@ from dataclasses import replace
 
 import sympy as sp
 
-from multipole import CField, I, R, ElementType, ModelError, Network, Param, Quantity, junction_a, junction_b, register
+import multipole as mp
+from multipole import CField, I, ModelError, Network, Param, Quantity, element, junction_a, junction_b
 
 MAX_STACK = 100      # largest piezo_stack n a netlist may ask for (checked by the loader)
 _NAMES = ("k_P", "delta_P", "C_P", "m", "R")
@@ -65,16 +66,38 @@ def literal_zero(value) -> bool:
     return sp.sympify(value).is_zero is True
 
 
-def piezo_element(k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
+_PORTS = {"mech_a": "translational: base (Weber port 0); force on the element, velocity of the base",
+          "mech_b": "translational: tip (Weber port 1); the moving mass m moves with it",
+          "elec_a": "electrical: positive electrode (current into it charges the element)",
+          "elec_b": "electrical: negative electrode"}
+_PARAMS = [
+    Param("k_P", "m/V = C/N", "piezo constant: extension per volt = charge per newton (reciprocal)", nonzero=True),
+    Param("delta_P", "m/N", "compliance at constant voltage (shorted); open: delta_P - k_P^2/C_P", positive=True),
+    Param("C_P", "F", "capacitance at constant force (free); blocked: C_P - k_P^2/delta_P", positive=True),
+    Param("m", "kg", "moving mass at the tip (literal 0: massless, Weber Bild 11)", 0.0, nonnegative=True),
+    Param("R", "Ohm", "series resistance of electrodes and leads (literal 0: ideal)", 0.0, nonnegative=True),
+]
+_TERMINALS = {"voltage": "V: terminal voltage e(elec_a) - e(elec_b)", "current": "A: current into elec_a"}
+
+
+@element("piezo_element",
+         "piezo element (Weber (50)-(55)): s1 = s0 + k_P*U + delta_P*T, Q = k_P*T + C_P*U, "
+         "(-F0) = F1 - m*a1, U_terminal = U + R*I",
+         _PORTS, _PARAMS,
+         {"stroke": "m: extension s1 - s0 (Weber Δs*)",
+          "force": "N: tension in the active part, (-F0) of Weber (53); = force at mech_b in statics",
+          "charge": "C: charge that entered at elec_a (Weber ΔQ*)", **_TERMINALS,
+          "field_voltage": "V: voltage U on the piezo capacitance (terminal voltage minus R*I)"})
+def piezo_element(k_P, delta_P, C_P, m, R) -> Network:
     """One piezo element (Weber Bild 36) with ports mech_a, mech_b, elec_a, elec_b.
 
     ``k_P`` [m/V = C/N] piezo constant, ``delta_P`` [m/N] compliance at constant voltage (shorted
     electrodes), ``C_P`` [F] capacitance at constant force (mechanically free; blocked it is
     ``C_P − k_P²/delta_P``), ``m`` [kg] moving mass at the tip,
-    ``R_`` [Ω] series resistance of the electrodes and leads.
+    ``R`` [Ω] series resistance of the electrodes and leads.
     """
     S = sp.Matrix([[_S["delta_P"], _S["k_P"]], [_S["k_P"], _S["C_P"]]])
-    resistive = not literal_zero(R_)
+    resistive = not literal_zero(R)
     loop_ports = ["a", "b", "field"] + (["res"] if resistive else [])
     children = {
         "gap": junction_a(["base", "tip", "field"], "translational", [1, -1, 1]),
@@ -91,22 +114,30 @@ def piezo_element(k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
         ports["mech_b"] = "tip.out"
         params["m"] = m
     if resistive:
-        children["res"] = R(r=_S["R"], dom="electrical")
+        children["res"] = mp.R(r=_S["R"], dom="electrical")
         connections.append(["loop.res", "res.p"])
-        params["R"] = R_
+        params["R"] = R
     quantities = {
-        "stroke": Quantity(lambda V: V.x("field.q1"), "m", "extension s1 - s0 of the element (Weber Δs*)"),
-        "force": Quantity(lambda V: V.e("field.p1"), "N", "tension in the active part, (-F0) of Weber (53)"),
-        "charge": Quantity(lambda V: V.x("field.q2"), "C", "charge that entered at elec_a (Weber ΔQ*)"),
-        "field_voltage": Quantity(lambda V: V.e("field.p2"), "V", "voltage U on the piezo capacitance"),
-        "voltage": Quantity(lambda V: V.e("loop.a") - V.e("loop.b"), "V", "terminal voltage e_a - e_b"),
-        "current": Quantity(lambda V: V.f("loop.a"), "A", "current into elec_a"),
+        "stroke": Quantity(lambda V: V.x("field.q1")),
+        "force": Quantity(lambda V: V.e("field.p1")),
+        "charge": Quantity(lambda V: V.x("field.q2")),
+        "field_voltage": Quantity(lambda V: V.e("field.p2")),
+        "voltage": Quantity(lambda V: V.e("loop.a") - V.e("loop.b")),
+        "current": Quantity(lambda V: V.f("loop.a")),
     }
     return Network("piezo_element", children, connections, ports, params=params, quantities=quantities,
                    doc="Weber Bild 36: piezo element with tip mass and electrode resistance")
 
 
-def piezo_stack(n, k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
+@element("piezo_stack",
+         "piezo stack translator (Weber Bild 38): n piezo_elements, mechanically in series, "
+         "electrically in parallel",
+         _PORTS, [Param("n", "-", "number of elements (whole number)", positive=True, maximum=MAX_STACK)] +
+         [replace(p, doc=p.doc + " (of one element)") for p in _PARAMS],
+         {"stroke": "m: extension of the stack, the sum of the elements' strokes",
+          "force": "N: tension in the base element, (-F0) at mech_a",
+          "charge": "C: charge that entered at elec_a (sum over the elements)", **_TERMINALS})
+def piezo_stack(n, k_P, delta_P, C_P, m, R) -> Network:
     """``n`` piezo elements, mechanically in series and electrically in parallel (Weber Bild 38).
 
     The parameters are those of one element (see :func:`piezo_element`); the stack has the same
@@ -119,7 +150,7 @@ def piezo_stack(n, k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
                          "give the number of elements as a literal integer, e.g. n: 20")
     count = int(count)
     names = [f"e{k + 1}" for k in range(count)]
-    params = {"k_P": k_P, "delta_P": delta_P, "C_P": C_P, "m": m, "R": R_}
+    params = {"k_P": k_P, "delta_P": delta_P, "C_P": C_P, "m": m, "R": R}
     # literal zeros go to the elements as zeros (so they leave the mass/resistor out)
     inner = {k: (0 if literal_zero(v) else _S[k]) for k, v in params.items()}
     children = {name: piezo_element(inner["k_P"], inner["delta_P"], inner["C_P"], inner["m"], inner["R"])
@@ -136,12 +167,11 @@ def piezo_stack(n, k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
         return lambda V: sp.Add(*[V.quantity(f"{el}.{name}") for el in names])
 
     quantities = {
-        "stroke": Quantity(total("stroke"), "m", "extension of the stack, the sum of the elements' strokes"),
-        "force": Quantity(lambda V: V.quantity(f"{names[0]}.force"), "N",
-                          "tension in the base element, (-F0) at mech_a"),
-        "charge": Quantity(total("charge"), "C", "charge that entered at elec_a (sum over the elements)"),
-        "voltage": Quantity(lambda V: V.e("plus.ext") - V.e("minus.ext"), "V", "terminal voltage e_a - e_b"),
-        "current": Quantity(lambda V: V.f("plus.ext"), "A", "current into elec_a"),
+        "stroke": Quantity(total("stroke")),
+        "force": Quantity(lambda V: V.quantity(f"{names[0]}.force")),
+        "charge": Quantity(total("charge")),
+        "voltage": Quantity(lambda V: V.e("plus.ext") - V.e("minus.ext")),
+        "current": Quantity(lambda V: V.f("plus.ext")),
     }
     # Without electrode resistance the parallel fields share one voltage, without masses the series
     # fields share one force: the analyser puts the surplus field states into derivative causality
@@ -150,37 +180,3 @@ def piezo_stack(n, k_P, delta_P, C_P, m=0.0, R_=0.0) -> Network:
     return Network("piezo_stack", children, connections, ports,
                    params={k: v for k, v in params.items() if not literal_zero(v)}, quantities=quantities,
                    doc="Weber Bild 38: piezo stack translator")
-
-
-_PORTS = {"mech_a": "translational: base (Weber port 0); force on the element, velocity of the base",
-          "mech_b": "translational: tip (Weber port 1); the moving mass m moves with it",
-          "elec_a": "electrical: positive electrode (current into it charges the element)",
-          "elec_b": "electrical: negative electrode"}
-_PARAMS = [
-    Param("k_P", "m/V = C/N", "piezo constant: extension per volt = charge per newton (reciprocal)", nonzero=True),
-    Param("delta_P", "m/N", "compliance at constant voltage (shorted); open: delta_P - k_P^2/C_P", positive=True),
-    Param("C_P", "F", "capacitance at constant force (free); blocked: C_P - k_P^2/delta_P", positive=True),
-    Param("m", "kg", "moving mass at the tip (literal 0: massless, Weber Bild 11)", 0.0, nonnegative=True),
-    Param("R", "Ohm", "series resistance of electrodes and leads (literal 0: ideal)", 0.0, nonnegative=True),
-]
-_QTY = {"stroke": "m: extension s1 - s0 (Weber Δs*)",
-        "force": "N: tension in the active part, (-F0) of Weber (53); = force at mech_b in statics",
-        "charge": "C: charge that entered at elec_a (Weber ΔQ*)",
-        "voltage": "V: terminal voltage e(elec_a) - e(elec_b)",
-        "current": "A: current into elec_a"}
-
-register(ElementType(
-    "piezo_element",
-    lambda k_P, delta_P, C_P, m, R: piezo_element(k_P, delta_P, C_P, m, R),
-    "piezo element (Weber (50)-(55)): s1 = s0 + k_P*U + delta_P*T, Q = k_P*T + C_P*U, "
-    "(-F0) = F1 - m*a1, U_terminal = U + R*I",
-    _PORTS, _PARAMS,
-    {**_QTY, "field_voltage": "V: voltage U on the piezo capacitance (terminal voltage minus R*I)"}))
-register(ElementType(
-    "piezo_stack",
-    lambda n, k_P, delta_P, C_P, m, R: piezo_stack(n, k_P, delta_P, C_P, m, R),
-    "piezo stack translator (Weber Bild 38): n piezo_elements, mechanically in series, "
-    "electrically in parallel",
-    _PORTS, [Param("n", "-", "number of elements (whole number)", positive=True, maximum=MAX_STACK)] +
-    [replace(p, doc=p.doc + " (of one element)") for p in _PARAMS],
-    _QTY))

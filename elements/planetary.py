@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import I, ElementType, ModelError, Network, Param, Quantity, junction_a, junction_b, register
+from multipole import I, ModelError, Network, Param, Quantity, element, junction_a, junction_b
 
 from .gears import spur_stage
 
@@ -37,8 +37,29 @@ def _relative_speed(name, children, connections, carrier_port):
     return f"{name}.I", f"{name}.rel"
 
 
-def planetary(z_sun=None, z_ring=None, module=1e-3, r1=None, r2=None, r3=None, r4=None, internal=False,
-              c=None, d=0.0, J_p=None, x0=0.0):
+@element("planetary", "planetary gear (Weber §5.7): sun, ring, carrier; Willis ratio from the structure; simple "
+         "(z_sun, z_ring) or stepped planets (r1..r4)",
+         {"sun": "central wheel 1, shaft I (rotational)", "ring": "central wheel 4, shaft II (rotational)",
+          "carrier": "carrier (Steg) s (rotational)"},
+         [Param("z_sun", "-", "teeth of the sun (simple planetary with ring gear)", None, positive=True),
+          Param("z_ring", "-", "teeth of the ring gear (simple planetary)", None, positive=True),
+          Param("module", "m", "module of the simple planetary: radius = module*z/2", 1e-3, positive=True),
+          Param("r1", "m", "stepped planets: pitch radius of central wheel 1 (sun)", None, positive=True),
+          Param("r2", "m", "stepped planets: pitch radius of planet wheel p1 (meshes with 1)", None, positive=True),
+          Param("r3", "m", "stepped planets: pitch radius of planet wheel p2 (meshes with 4)", None, positive=True),
+          Param("r4", "m", "stepped planets: pitch radius of central wheel 4", None, positive=True),
+          Param("internal", "", "stepped planets: wheel 4 is an internal ring gear", False, "bool"),
+          Param("c", "N/m", "mesh stiffness of both meshes (rigid meshes if omitted); a number or an expression of "
+                "the mesh phase q", None, "law", law_var="q", positive=True),
+          Param("d", "N*s/m", "mesh damping of both meshes", 0.0),
+          Param("x0", "m", "initial deflection of the sun mesh (mounting error)", 0.0),
+          Param("J_p", "kg*m^2", "spin inertia of the planet(s) about their own axis", None, positive=True)],
+         {"i0": "-: fixed-carrier ratio (omega_sun - omega_s)/(omega_ring - omega_s)",
+          "rolling_power": "W: power through the sun mesh in the carrier frame, M_I*(omega_I - omega_s)",
+          "coupling_power": "W: power carried by the carrier rotation, M_I*omega_s",
+          "mesh12.force": "N: sun-planet mesh force",
+          "mesh34.force": "N: planet-ring mesh force"})
+def planetary(z_sun, z_ring, module, r1, r2, r3, r4, internal, c, d, x0, J_p):
     """Build the planetary gear multipole (radii m, stiffness N/m, damping N·s/m, inertia kg·m²)."""
     stepped = [r1, r2, r3, r4]
     if z_sun is not None or z_ring is not None:
@@ -78,35 +99,9 @@ def planetary(z_sun=None, z_ring=None, module=1e-3, r1=None, r2=None, r3=None, r
     sign4 = 1 if ring_internal else -1
     i0 = (-radii[1] / radii[0]) * (sign4 * radii[3] / radii[2])
     quantities = {
-        "i0": Quantity(lambda V: sp.sympify(i0).xreplace({s: V.param(s.name) for s in sp.sympify(i0).free_symbols}), "-", "fixed-carrier ratio (omega_sun - omega_s)/(omega_ring - omega_s)"),
-        "rolling_power": Quantity(lambda V: V.e("rel_sun.I") * (V.f("rel_sun.I") - V.f("carrier.carrier")), "W",
-                                  "power through the sun mesh in the carrier frame, M_I*(omega_I - omega_s)"),
-        "coupling_power": Quantity(lambda V: V.e("rel_sun.I") * V.f("carrier.carrier"), "W",
-                                   "power carried by the carrier rotation, M_I*omega_s"),
+        "i0": Quantity(lambda V: sp.sympify(i0).xreplace({s: V.param(s.name) for s in sp.sympify(i0).free_symbols})),
+        "rolling_power": Quantity(lambda V: V.e("rel_sun.I") * (V.f("rel_sun.I") - V.f("carrier.carrier"))),
+        "coupling_power": Quantity(lambda V: V.e("rel_sun.I") * V.f("carrier.carrier")),
     }
     return Network("planetary", children, connections, {"sun": sun, "ring": ring, "carrier": "carrier.carrier"},
                    params=params, quantities=quantities, doc="planetary gear (Weber Bild 32)")
-
-
-register(ElementType(
-    "planetary", lambda **kw: planetary(**kw),
-    "planetary gear (Weber §5.7): sun, ring, carrier; Willis ratio from the structure; simple (z_sun, z_ring) "
-    "or stepped planets (r1..r4)",
-    {"sun": "central wheel 1, shaft I (rotational)", "ring": "central wheel 4, shaft II (rotational)",
-     "carrier": "carrier (Steg) s (rotational)"},
-    [Param("z_sun", "-", "teeth of the sun (simple planetary with ring gear)", None, positive=True),
-     Param("z_ring", "-", "teeth of the ring gear (simple planetary)", None, positive=True),
-     Param("module", "m", "module of the simple planetary: radius = module*z/2", 1e-3, positive=True),
-     Param("r1", "m", "stepped planets: pitch radius of central wheel 1 (sun)", None, positive=True),
-     Param("r2", "m", "stepped planets: pitch radius of planet wheel p1 (meshes with 1)", None, positive=True),
-     Param("r3", "m", "stepped planets: pitch radius of planet wheel p2 (meshes with 4)", None, positive=True),
-     Param("r4", "m", "stepped planets: pitch radius of central wheel 4", None, positive=True),
-     Param("internal", "", "stepped planets: wheel 4 is an internal ring gear", False, "bool"),
-     Param("c", "N/m", "mesh stiffness of both meshes (rigid meshes if omitted); a number or an expression of "
-           "the mesh phase q", None, "law", law_var="q", positive=True),
-     Param("d", "N*s/m", "mesh damping of both meshes", 0.0),
-     Param("x0", "m", "initial deflection of the sun mesh (mounting error)", 0.0),
-     Param("J_p", "kg*m^2", "spin inertia of the planet(s) about their own axis", None, positive=True)],
-    {"i0": "-: fixed-carrier ratio", "rolling_power": "W: M_I*(omega_I - omega_s)",
-     "coupling_power": "W: M_I*omega_s", "mesh12.force": "N: sun-planet mesh force",
-     "mesh34.force": "N: planet-ring mesh force"}))

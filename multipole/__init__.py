@@ -7,7 +7,7 @@ Pipeline (one module per stage)::
 
 The public API below is what element libraries and scripts build on.
 """
-from .catalogue import REQUIRED, ElementType, Param, catalogue, register
+from .catalogue import REQUIRED, ElementType, Param, catalogue, element, register
 from .causality import Analysis, analyse
 from .diagnostics import CATALOGUE as DIAGNOSTICS, Diagnostic
 from .domains import DOMAINS, Domain
@@ -25,7 +25,7 @@ from . import pipeline
 __version__ = "0.1.0"
 
 __all__ = [
-    "REQUIRED", "ElementType", "Param", "catalogue", "register", "Analysis", "analyse", "DIAGNOSTICS",
+    "REQUIRED", "ElementType", "Param", "catalogue", "element", "register", "Analysis", "analyse", "DIAGNOSTICS",
     "Diagnostic", "DOMAINS", "Domain", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "RunError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
     "GY", "I", "MTF", "R", "TF", "Primitive", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",

@@ -6,12 +6,14 @@ their machine elements through the ``multipole.elements`` entry-point group (the
 """
 from __future__ import annotations
 
+import functools
+import inspect
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Callable
 
-
 from .errors import ModelError
+from .network import Network
 from .primitives import C, GY, I, MTF, R, TF, CField, Se, Sf, Tap, junction_a, junction_b
 
 REQUIRED = object()
@@ -68,7 +70,18 @@ class Param:
 
 @dataclass
 class ElementType:
-    """A buildable element type: ``build(**params)`` returns a Network or a Primitive."""
+    """A buildable element type: ``build(**params)`` returns a Network or a Primitive.
+
+    Each fact is declared here once.  ``params`` are the builder's arguments, in its order and with
+    their defaults: the builder itself declares no defaults, and ``build`` (the builder wrapped at
+    registration) fills them in from the :class:`Param` list, so netlists and Python callers get
+    the same defaults.  ``quantities`` maps a quantity's name to ``"unit: meaning"``; a Network the
+    builder returns names its :class:`~multipole.network.Quantity` objects by their expression
+    only, and ``build`` gives them the declared unit and meaning.  A unit that depends on the
+    configuration is declared with alternatives (``"N*m | N"``); the builder then states the one
+    it built (e.g. from the port's domain).  Dotted names document quantities of a child element
+    (``mesh12.force``; ``s<k>.force`` for the numbered children s1, s2, ...).
+    """
 
     name: str
     build: Callable
@@ -78,6 +91,57 @@ class ElementType:
     quantities: dict = field(default_factory=dict)   # name -> "unit: meaning"
     one_of: tuple = ()                # groups of parameters of which exactly one must be given
     category: str = "element"
+
+    def __post_init__(self):
+        self.builder = self.build
+        taken = inspect.signature(self.builder).parameters
+        declared = [p.name for p in self.params]
+        if list(taken) != declared:
+            raise ModelError("bad_element_type", f"element type {self.name}: the builder takes "
+                             f"({', '.join(taken)}), the declared parameters are ({', '.join(declared)})",
+                             "declare one Param per builder argument, in the builder's order")
+        own = [n for n, a in taken.items() if a.default is not a.empty or a.kind is not a.POSITIONAL_OR_KEYWORD]
+        if own:
+            raise ModelError("bad_element_type", f"element type {self.name}: the builder declares defaults or "
+                             f"special arguments ({', '.join(own)})", "give defaults in the Param only")
+        try:
+            signature = inspect.Signature([inspect.Parameter(p.name, inspect.Parameter.POSITIONAL_OR_KEYWORD,
+                                                             default=inspect.Parameter.empty if p.required else
+                                                             p.default) for p in self.params])
+        except ValueError:
+            raise ModelError("bad_element_type", f"element type {self.name}: a required parameter follows one with "
+                             "a default", "declare the required parameters first") from None
+
+        @functools.wraps(self.builder)
+        def build(*args, **kwargs):
+            bound = signature.bind(*args, **kwargs)
+            bound.apply_defaults()
+            made = self.builder(*bound.args)
+            if isinstance(made, Network):
+                self._document(made)
+            return made
+
+        build.__signature__ = signature
+        self.build = build
+
+    def quantity(self, name: str) -> tuple[str, str]:
+        """``(unit, meaning)`` of a declared quantity; the unit may list alternatives ``"N*m | N"``."""
+        unit, _, meaning = self.quantities[name].partition(": ")
+        return (unit, meaning) if meaning else ("", unit)
+
+    def _document(self, net: Network) -> None:
+        """Give the built network's quantities their declared unit and meaning (refuse undeclared ones)."""
+        for name, q in net.quantities.items():
+            if name not in self.quantities:
+                raise ModelError("undeclared_quantity", f"element type {self.name} builds the quantity {name!r} "
+                                 "it does not declare", f"add {name!r} to the quantities of {self.name}")
+            unit, meaning = self.quantity(name)
+            choices = unit.split(" | ")
+            if (q.unit or len(choices) > 1) and q.unit not in choices:
+                raise ModelError("quantity_unit", f"element type {self.name}: quantity {name!r} built in "
+                                 f"{q.unit or 'no unit'}, declared in {unit}",
+                                 "state one of the declared units when building it")
+            q.unit, q.doc = q.unit or unit, meaning
 
     def param(self, name: str) -> Param | None:
         return next((p for p in self.params if p.name == name), None)
@@ -124,6 +188,19 @@ def register(etype: ElementType) -> ElementType:
         raise ModelError("duplicate_type", f"element type {etype.name!r} is registered twice")
     _REGISTRY[etype.name] = etype
     return etype
+
+
+def element(name: str, doc: str, ports: dict, params: list, quantities: dict | None = None, **options):
+    """Decorator: register the decorated builder as element type ``name`` and return its ``build``
+    (the builder with the declared defaults and quantity units), e.g.::
+
+        @element("spring", "linear spring", {"a": "port a", "b": "port b"}, [Param("c", "N/m", "stiffness")],
+                 {"force": "N: effort in the spring"})
+        def spring(c): ...
+    """
+    def declare(builder: Callable) -> Callable:
+        return register(ElementType(name, builder, doc, ports, params, dict(quantities or {}), **options)).build
+    return declare
 
 
 def catalogue() -> dict[str, ElementType]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
@@ -215,9 +216,15 @@ def switching_functions(expr) -> list:
 
 def switch_list(writer) -> list:
     """The model's switching functions in a fixed order: those of the evaluation order's steps and
-    of the inputs (a step in a source is an event too); constant ones are left out."""
+    of the inputs (a step in a source is an event too); constant ones are left out.  A function and
+    its negative are one switch (``max(q, 0)`` switches on ``-q``, its slope ``Heaviside(q)`` on
+    ``q``): two would cross at the same instant and each restart would flip the other back."""
     exprs = [e for u in writer.units for e in u.exprs] + [sp.sympify(e) for e in writer.eq.inputs.values()]
-    return list(dict.fromkeys(s for e in exprs for s in switching_functions(e) if s.free_symbols))
+    out: dict = {}
+    for s in (s for e in exprs for s in switching_functions(e) if s.free_symbols):
+        if s not in out and -s not in out:
+            out[s] = None
+    return list(out)
 
 
 _PERIODIC = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
@@ -382,6 +389,40 @@ def _closure(units: list, needed) -> list:
             keep.append(u)
             need |= u.deps
     return keep[::-1]
+
+
+@dataclass
+class Derivative:
+    """One step of a :class:`JacobianPlan`: ``name = code``, a derivative of a variable by a state."""
+
+    name: str
+    code: str
+
+
+@dataclass
+class LoopDerivatives:
+    """One step of a :class:`JacobianPlan`: the derivatives of an algebraic loop's unknowns z by the
+    states, ``Dz = -Jz⁻¹ G``, where ``Jz`` = d(residuals)/dz (a sympy matrix, parameters not folded:
+    print it with the writer's ``P``) and ``G`` = d(residuals)/dx of shape ``(len(z), n_columns)``,
+    given by its nonzero entries ``g = [(row, column, code)]``; ``names = [(row of z, column, name)]``
+    are then set to ``Dz[row, column]``."""
+
+    block: int
+    jz: sp.Matrix
+    g: list
+    n_columns: int
+    names: list
+
+
+@dataclass
+class JacobianPlan:
+    """The forward-mode Jacobian of a model as data (:meth:`Writer.jacobian_plan`): the evaluation
+    ``units`` the prologue must compute, the ``steps`` (:class:`Derivative`, :class:`LoopDerivatives`)
+    in order, and the nonzero ``entries = [(i, j, name)]``: ``J[i, j] = name``."""
+
+    units: list
+    steps: list
+    entries: list
 
 
 class _Writer:
@@ -573,16 +614,26 @@ class _Writer:
         body = [f"    {self.names[u]} = {self.P(self.eq.inputs[u])}" for u in inputs]
         return head + body + [f"    return _M @ np.concatenate((x, [{ext}]))", ""]
 
+    def affine_jacobian(self) -> list:
+        """``jac`` of an affine right-hand side (see :meth:`affine_rhs`): the state columns of ``M``,
+        constant.  The forward-mode code it replaces has a line per nonzero, and compiling that
+        function (60,000 lines for 20,000 states) took gigabytes."""
+        n = len(self.states)
+        return [f"_M_STATES = _M[:, :{n}]", "", "def jac(t, x):",
+                '    """Jacobian d(rhs)/dx: the state columns of M (an affine model)."""',
+                "    _stats['jac_calls'] += 1", "    return _M_STATES.toarray()", ""]
+
     def function(self, name, doc, needed, ret, extra=()) -> list:
         units = _closure(self.units, needed)
         return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + self.prologue(units, needed) + \
             [f"    return {ret}", ""]
 
-    def jacobian(self, name: str = "jac") -> list:
-        """Forward-mode Jacobian through the evaluation order (sparse in the states)."""
+    def jacobian_plan(self) -> "JacobianPlan":
+        """The forward-mode Jacobian d(rhs)/dx through the evaluation order (sparse in the states)
+        as structured steps that any printer writes out (:class:`JacobianPlan`); expressions are
+        already printed by this writer's printer."""
         units = _closure(self.units, self.eq.derivatives)
-        out = [f"def {name}(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
-        out += self.prologue(units, self.eq.derivatives)
+        steps: list = []
         D: dict = {}
         count = 0
         for u in units:
@@ -590,7 +641,7 @@ class _Writer:
                 D[u.variables[0]] = {}
                 for j, code in self.grad(u.exprs[0], (), D).items():
                     count += 1
-                    out.append(f"    _d{count} = {code}")
+                    steps.append(Derivative(f"_d{count}", code))
                     D[u.variables[0]][j] = f"_d{count}"
                 continue
             b = self.eq.blocks[u.block]
@@ -603,19 +654,35 @@ class _Writer:
                 D[z] = {}
             if not cols:
                 continue
-            n, js = len(zs), sorted(cols)
-            out += self.matrix_lines("_Jz", _jacobian(b.residuals, zs)) + [f"    _G = np.zeros(({n}, {len(js)}))"]
-            out += [f"    _G[{r_i}, {c}] = {code}" for c, j in enumerate(js) for r_i, code in cols[j].items()]
-            out.append("    _Dz = -np.linalg.solve(_Jz, _G)")
+            js = sorted(cols)
+            g = [(r_i, c, code) for c, j in enumerate(js) for r_i, code in cols[j].items()]
+            names = []
             for zi, z in enumerate(zs):
                 for c, j in enumerate(js):
                     count += 1
-                    out.append(f"    _d{count} = _Dz[{zi}, {c}]")
+                    names.append((zi, c, f"_d{count}"))
                     D[z][j] = f"_d{count}"
+            steps.append(LoopDerivatives(u.block, _jacobian(b.residuals, zs), g, len(js), names))
+        entries = [(i, j, name) for i, d in enumerate(self.eq.derivatives) for j, name in D.get(d, {}).items()]
+        return JacobianPlan(units, steps, entries)
+
+    def jacobian(self, name: str = "jac") -> list:
+        """The Jacobian function of the numpy backend, printed from :meth:`jacobian_plan`."""
+        plan = self.jacobian_plan()
+        out = [f"def {name}(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
+        out += self.prologue(plan.units, self.eq.derivatives)
+        for step in plan.steps:
+            if isinstance(step, Derivative):
+                out.append(f"    {step.name} = {step.code}")
+                continue
+            n = step.jz.shape[0]
+            out += self.matrix_lines("_Jz", step.jz) + [f"    _G = np.zeros(({n}, {step.n_columns}))"]
+            out += [f"    _G[{r_i}, {c}] = {code}" for r_i, c, code in step.g]
+            out.append("    _Dz = -np.linalg.solve(_Jz, _G)")
+            out += [f"    {d} = _Dz[{zi}, {c}]" for zi, c, d in step.names]
         n = len(self.states)
         out.append(f"    _J = np.zeros(({n}, {n}))")
-        for i, d in enumerate(self.eq.derivatives):
-            out += [f"    _J[{i}, {j}] = {name}" for j, name in D.get(d, {}).items()]
+        out += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
         return out + ["    return _J", ""]
 
     def grad(self, expr, exclude, D) -> dict:
@@ -821,7 +888,7 @@ def generate(eq: Equations, outputs=()) -> str:
     src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"] + time_switch_lines(w, sw)
     src += w.function("switches", "Switching functions: a sign change is an event.", needed,
                       f"[{', '.join(P(s) for s in sw)}]")
-    src += w.jacobian()
+    src += w.affine_jacobian() if affine is not None else w.jacobian()
     if sw:        # the same right-hand side and Jacobian with every switch held on one side
         w.locked({g: k for k, g in enumerate(sw)})
         src += ["_mode = [1.0] * N_SWITCHES", ""]
@@ -844,3 +911,10 @@ def compile_model(eq: Equations, outputs=()) -> Model:
             "aliases": {v.name: [r.name, int(s)] for v, (r, s) in eq.analysis.aliases.items()}
             if eq.analysis is not None else {}}
     return Model(source, meta, eq)
+
+
+#: The code-writer API backends print their models with (docs/backends.md, "The seam"): the
+#: printer of expressions, the writer of the evaluation order (``units``, ``prologue``,
+#: ``unit_lines``, ``function``, :meth:`~_Writer.jacobian_plan`) and the evaluation units a set
+#: of variables needs, in order.
+Printer, Writer, Unit, closure = _Printer, _Writer, _Unit, _closure

@@ -286,12 +286,20 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             diagnostics.append(_loop_diag(analysis, owners, zs, "nonlinear", res, kept[0]))
             continue
         numeric = A.xreplace(analysis.flat.param_values())
-        if not any(x.free_symbols for x in numeric) and _singular_matrix(numeric):
-            from .checks import Names, listing
+        side = None if any(x.free_symbols for x in numeric) else {} if _singular_matrix(numeric) else None
+        if side is None:
+            side = _singular_switch_side(A, analysis.flat.param_values())
+        if side is not None:
+            from .checks import Names, listing, user_expression
             names = Names(analysis)
             els = names.elements_of(owners)
-            err = IllPosedError("singular_loop", f"the algebraic loop through {', '.join(els)} is singular: it does "
-                                f"not determine {names.variables(zs)} uniquely",
+            where = " and ".join(f"{user_expression(a)} {'>' if on else '<'} 0" for a, on in side.items())
+            err = IllPosedError("singular_loop", f"the algebraic loop through {', '.join(els)} is singular"
+                                f"{' while ' + where if where else ''}: it does not determine "
+                                f"{names.variables(zs)} uniquely",
+                                f"put a storage element (a mass, an inertia) between {listing(els)} so the loop is "
+                                "determined on every side of their switching laws, or combine them into one element "
+                                "whose law covers both" if where else
                                 f"check the parameters of {listing(els)} (a loop gain or a resistance sum that is "
                                 "zero) or add a storage element to the loop")
             err.variables, err.owners = zs, owners      # for the check's wording (multipole.checks)
@@ -444,6 +452,29 @@ def _singular_matrix(A) -> bool:
             return True
         M = M / scale
     return np.linalg.matrix_rank(M) < M.shape[0]
+
+
+#: a linear loop's switching factors are tried on both sides up to this many of them (2**n matrices)
+_MAX_SWITCHES = 8
+
+
+def _singular_switch_side(A, params) -> dict | None:
+    """The side of the switches on which the loop matrix ``A`` is singular, ``{argument: on}`` for
+    each ``Heaviside(argument)`` factor in it, or None.  A compression-only stop in derivative
+    causality brings its law's slope ``k·Heaviside(q)`` into the constrained-state loop: on the
+    flat side of every switch the effective compliance divides by zero and the split of the motion
+    between the storages is undetermined.  Only matrices whose every non-parameter symbol sits in a
+    switch are decided; sides that make the matrix contain another symbol are left alone."""
+    steps = sorted(A.atoms(sp.Heaviside), key=sp.default_sort_key)
+    if not steps or len(steps) > _MAX_SWITCHES:
+        return None
+    numeric = A.xreplace(params)
+    for bits in range(2 ** len(steps)):
+        side = {h: sp.S((bits >> k) & 1) for k, h in enumerate(steps)}
+        M = numeric.xreplace({h.xreplace(params): v for h, v in side.items()})
+        if not any(x.free_symbols for x in M) and _singular_matrix(M):
+            return {h.args[0]: bool(v) for h, v in side.items()}
+    return None
 
 
 def _singular(J) -> bool:

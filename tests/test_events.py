@@ -262,3 +262,54 @@ def test_a_notch_much_narrower_than_the_samples_is_found(backend, notch):
     assert np.allclose(edges, [tc - half, tc + half], rtol=0, atol=1e-12)
     off = np.clip(res.t - (tc - half), 0.0, 2 * half)
     assert np.allclose(res["body.v"], F / m * (res.t - off), rtol=1e-9, atol=1e-15)
+
+
+STOPS_IN_SERIES = """
+name: stops_in_series
+parameters: {m: 1.0, v0: 1.0, d1: 0.5, d2: 0.5001, k1: 1.0e4, k2: 1.0e4}
+elements:
+  body:   {type: mass, m: m, v0: v0}
+  stop_j: {type: junction_a, ports: [a, b, c, d], signs: [1, -1, -1, -1], domain: translational}
+  stop1:  {type: C, law: "k1*max(q, 0)", q0: "-d1", domain: translational}
+  stop2:  {type: C, law: "k2*max(q - (d2 - d1), 0)", q0: 0, domain: translational}
+  wall:   {type: ground, domain: translational}
+connections:
+  - [body.b, stop_j.a]
+  - [stop_j.b, wall.p]
+  - [stop_j.c, stop1.p]
+  - [stop_j.d, stop2.p]
+outputs: [body.v]
+simulate: {t_end: 1.0, dt_out: 0.01, solver: RK45, rtol: 1.0e-10, atol: 1.0e-12}
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_two_compression_only_stops_in_series_are_refused_in_one_line(backend):
+    """Two compression-only springs on one common-force junction carry one force, so stop2.q is in
+    derivative causality and its constrained-state loop holds k1·step(stop1.q) + k2·step(...): while
+    both are free (the start) the split of the motion between them is undetermined and the effective
+    compliance divides by zero.  Was an event at 0.414 s (numpy) and a ZeroDivisionError printed from
+    compiled code (numba); now the assembly refuses it, naming the switch side."""
+    from multipole.errors import MultipoleError
+    with pytest.raises(MultipoleError) as err:
+        run(STOPS_IN_SERIES, backend=backend)
+    assert err.value.code == "singular_loop"
+    text = str(err.value)
+    assert "\n" not in text.split("(fix:")[0]
+    assert "stop1.q < 0" in text and "stop1" in text and "stop2" in text
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_stop_in_series_with_a_linear_spring_gives_the_series_stiffness(backend):
+    """The same pair with stop2 linear (k2·q) is determined on both sides: free flight until the gap
+    d1 closes at t1 = d1/v0 (stop2 carries no force, so it stays undeflected), then half a period
+    pi·sqrt(m/k) of the series stiffness k = k1·k2/(k1 + k2), and the mass leaves with -v0."""
+    m, v0, d1, k1, k2 = 1.0, 1.0, 0.5, 1.0e4, 1.0e4
+    res = run(STOPS_IN_SERIES.replace("k2*max(q - (d2 - d1), 0)", "k2*q"), backend=backend)
+    assert res.stats["backend"] == backend
+    k = k1 * k2 / (k1 + k2)
+    t1 = d1 / v0
+    t2 = t1 + np.pi * np.sqrt(m / k)
+    assert np.allclose([t for t, _ in res.events], [t1, t2], rtol=0, atol=1e-9)
+    assert np.allclose(res["body.v"][res.t > t2], -v0, rtol=1e-8)
+    assert np.allclose(res["body.v"][res.t < t1], v0, rtol=1e-12)

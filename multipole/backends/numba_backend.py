@@ -5,7 +5,7 @@
 How a run goes:
 
 1. *Translation* — the :class:`~multipole.equations.Equations` are printed as Python source by a
-   subclass of the kernel's code writer (:class:`multipole.codegen._Writer`): the right-hand side,
+   subclass of the kernel's code writer (:class:`multipole.codegen.Writer`): the right-hand side,
    the forward-mode Jacobian, the outputs and the switching functions, each as a numba ``cfunc``
    ``void fun(double t, double *x, double *out, double *w)`` that writes into ``out``; numeric
    linear loops are solved by a small LU, nonlinear loops by a damped Newton iteration
@@ -63,7 +63,7 @@ _DESCRIPTION = {"RK45": "Dormand-Prince 5(4)", "Radau": "Radau IIA order 5"}
 PROGRESS_CHUNK = 200
 
 
-class _Printer(codegen._Printer):
+class _Printer(codegen.Printer):
     """The kernel's printer, with ``sign`` parenthesised, ``Piecewise`` always total and every
     number a float (numba types a list mixing ints and floats as an error); a switch held on its
     side reads the side from the work array."""
@@ -117,10 +117,25 @@ def _newton{k}(w, a):
         _blk{k}(z, a, F, J)
         norm = _k.norm2(F)
         for it in range(1, {max_warm} + 1 if attempt == 0 else {max_zero} + 1):
+            if norm == 0.0:     # a zero residual is a solution, even where J is singular
+                w[0] += total
+                w[1] += 1
+                for i in range({n}):
+                    w[{off} + i] = z[i]
+                return z
             total += 1
             for i in range({n}):
                 dz[i] = F[i]
             _k.lu_factor(J, piv)
+            singular = False
+            for i in range({n}):
+                singular = singular or J[i, i] == 0.0
+            if singular:        # off the root (d*f*|f| at f = 0): step off the singular point
+                for i in range({n}):
+                    z[i] += {nudge} * (1.0 + abs(z[i]))
+                _blk{k}(z, a, F, J)
+                norm = _k.norm2(F)
+                continue
             _k.lu_solve(J, piv, dz)
             lam = 1.0
             while True:
@@ -152,7 +167,7 @@ def _newton{k}(w, a):
 _W_HEAD = K.W_HEAD     # layout of the work array: see numba_kernels.W_HEAD
 
 
-class _Writer(codegen._Writer):
+class _Writer(codegen.Writer):
     """Prints the model as numba ``cfunc`` functions ``void fun(t, *x, *out, *w)``."""
 
     def __init__(self, eq):
@@ -163,20 +178,6 @@ class _Writer(codegen._Writer):
         self.work = _W_HEAD + len(self.switches)   # the switches' sides, then the loops' guesses
         self.offsets: dict = {}              # Newton loop (block index) -> offset of its guess in w
         self.deps: dict = {}                 # Newton loop -> symbols its residuals read
-
-    def grad(self, expr, exclude, D) -> dict:
-        """As the kernel writer's, but in a fixed order of the symbols, so that the generated
-        source (and with it the cache key) is the same in every process."""
-        acc: dict = {}
-        for w in sorted(expr.free_symbols - set(exclude), key=lambda s: s.name):
-            if w in self.index:
-                acc.setdefault(self.index[w], []).append(self.P(codegen._diff(expr, w)))
-            elif D.get(w):
-                d = codegen._diff(expr, w).xreplace(self.pvals)
-                for j, name in D[w].items():
-                    acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
-                                                 else f"({self.P(d)})*{name}")
-        return {j: " + ".join(t) for j, t in sorted(acc.items())}
 
     def prologue(self, units, extra=()) -> list:
         used = set(extra).union(*(u.deps for u in units)) if units else set(extra)
@@ -222,7 +223,7 @@ class _Writer(codegen._Writer):
             src += [f"    _F[{i}] = {P(r)}" for i, r in enumerate(res)]
             src += [f"    _J[{i}, {j}] = {P(Jz[i, j])}" for i in range(n) for j in range(n)]
             src += ["", _NEWTON.format(k=k, off=off, end=off + n, n=n, max_warm=codegen.NEWTON_MAX_ITER[0],
-                                              max_zero=codegen.NEWTON_MAX_ITER[1])]
+                                              max_zero=codegen.NEWTON_MAX_ITER[1], nudge=codegen.NEWTON_NUDGE)]
             self.blocks_src += src
         deps = self.deps[k]
         lines = [f"    _a = np.empty({max(len(deps), 1)})"] + [f"    _a[{i}] = {N[d]}" for i, d in enumerate(deps)]
@@ -230,44 +231,35 @@ class _Writer(codegen._Writer):
 
     def function(self, name, doc, needed, values, shape) -> list:
         """A cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``."""
-        units = codegen._closure(self.units, needed)
+        units = codegen.closure(self.units, needed)
         return [f"@cfunc({_SIG}, cache=True)", f"def {name}(t, xp, outp, wp):", f'    """{doc}"""',
                 f"    x = carray(xp, ({len(self.states)},), np.float64)",
                 f"    out = carray(outp, {shape}, np.float64)", "    w = carray(wp, (N_WORK,), np.float64)"] + \
             self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)] + [""]
 
     def jacobian_function(self) -> list:
-        """The kernel writer's forward-mode Jacobian, writing into ``out`` instead of a new array
-        (numba compiles slice assignment and ``np.zeros`` slowly)."""
+        """The kernel's forward-mode Jacobian (:meth:`multipole.codegen.Writer.jacobian_plan`) as a
+        cfunc writing into ``out`` (numba compiles slice assignment and ``np.zeros`` slowly)."""
         n = len(self.states)
-        lines = self.jacobian()
-        alloc = f"    _J = np.zeros(({n}, {n}))"
-        if lines[0] != "def jac(t, x):" or alloc not in lines or "    return _J" not in lines:
-            raise CodegenMismatch("the kernel's Jacobian code has an unexpected shape")
-        loops = {}          # the kernel's "_Jz = np.array([[...]])" of each loop -> element assignments
-        for u in codegen._closure(self.units, self.eq.derivatives):
-            if u.kind != "assign":
-                Jz = sp.Matrix(self.eq.blocks[u.block].residuals).jacobian(u.variables)
-                n_z = len(u.variables)
-                rows = ", ".join("[" + ", ".join(self.P(Jz[i, j]) for j in range(n_z)) + "]" for i in range(n_z))
-                loops[f"    _Jz = np.array([{rows}])"] = [f"    _Jz = np.empty(({n_z}, {n_z}))"] + \
-                    [f"    _Jz[{i}, {j}] = {self.P(Jz[i, j])}" for i in range(n_z) for j in range(n_z)]
-        body = []
-        for ln in lines[2:]:
-            if ln in loops:
-                body += loops[ln]
-            elif ln == alloc:
-                body += ["    _J = out", f"    for _i in range({n}):", f"        for _j in range({n}):",
-                         "            _J[_i, _j] = 0.0"]
-            elif "_stats[" not in ln and ln != "    return _J":
-                body.append(ln.replace("-np.linalg.solve(_Jz, _G)", "_k.neg_solve(_Jz, _G)"))
+        plan = self.jacobian_plan()
+        body = self.prologue(plan.units, self.eq.derivatives)
+        for step in plan.steps:
+            if isinstance(step, codegen.Derivative):
+                body.append(f"    {step.name} = {step.code}")
+                continue
+            n_z = step.jz.shape[0]
+            body += [f"    _Jz = np.zeros(({n_z}, {n_z}))"]
+            body += [f"    _Jz[{i}, {j}] = {self.P(v)}" for (i, j), v in sorted(step.jz.todok().items())]
+            body += [f"    _G = np.zeros(({n_z}, {step.n_columns}))"]
+            body += [f"    _G[{r_i}, {c}] = {code}" for r_i, c, code in step.g]
+            body.append("    _Dz = _k.neg_solve(_Jz, _G)")
+            body += [f"    {d} = _Dz[{zi}, {c}]" for zi, c, d in step.names]
+        body += ["    _J = out", f"    for _i in range({n}):", f"        for _j in range({n}):",
+                 "            _J[_i, _j] = 0.0"]
+        body += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
         return [f"@cfunc({_SIG}, cache=True)", "def jac(t, xp, outp, wp):", '    """Jacobian d(rhs)/dx into out."""',
                 f"    x = carray(xp, ({n},), np.float64)", f"    out = carray(outp, ({n}, {n}), np.float64)",
                 "    w = carray(wp, (N_WORK,), np.float64)"] + body + [""]
-
-
-class CodegenMismatch(RuntimeError):
-    """The kernel's code writer changed in a way this backend does not understand (-> numpy)."""
 
 
 switch_list = codegen.switch_list
@@ -564,7 +556,7 @@ class NumbaBackend(Backend):
 
     def compile(self, equations, outputs) -> NumbaModel:
         """Translate (remembered per structure), load or compile the module and the loops; a
-        :class:`CodegenMismatch` or numba's own errors make the caller fall back to numpy."""
+        a printer's or numba's own error makes the caller fall back to numpy."""
         outputs = list(outputs)
         mine = getattr(equations, "_numba_model", None)
         if mine is not None and mine[0] == tuple(outputs):

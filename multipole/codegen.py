@@ -32,6 +32,20 @@ def _residual(fun, z):
         return None
 
 
+#: relative size of the step off a point where the loop's Jacobian is singular (sqrt of float eps)
+NEWTON_NUDGE = 1.5e-8
+
+
+def _newton_step(F, J, scalar: bool):
+    """The Newton step ``J⁻¹F``, or None where ``J`` is singular."""
+    try:
+        with np.errstate(divide="raise", invalid="raise"):
+            dz = F / J if scalar else np.linalg.solve(J, F)
+    except (np.linalg.LinAlgError, ZeroDivisionError, FloatingPointError):
+        return None
+    return dz if np.all(np.isfinite(dz)) else None
+
+
 def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False):
     """Damped Newton from ``z``: ``(solution, iterations)``, or ``(None, iterations)`` if it fails.
 
@@ -42,11 +56,20 @@ def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False):
         return None, 0
     F, J = start
     norm = norm_of(F)
+    nudges = 0
     for it in range(1, max_iter + 1):
-        try:
-            dz = F / J if scalar else np.linalg.solve(J, F)
-        except (np.linalg.LinAlgError, ZeroDivisionError):
-            return None, it
+        if norm == 0.0:               # a zero residual is a solution, even where J is singular
+            return z, it - 1
+        dz = _newton_step(F, J, scalar)
+        if dz is None:                # singular J off the root (d·f·|f| at f = 0): step off the point
+            trial = _residual(fun, z + NEWTON_NUDGE * (1.0 + abs(z))) if nudges < 3 else None
+            if trial is None:
+                return None, it
+            nudges += 1
+            z = z + NEWTON_NUDGE * (1.0 + abs(z))
+            F, J = trial
+            norm = norm_of(F)
+            continue
         lam = 1.0
         while True:
             z_new = z - lam * dz

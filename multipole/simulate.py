@@ -599,9 +599,12 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
         text = str(exc)
         reason = ("outside the domain of a function (root or logarithm of a negative number, acos or asin "
                   "beyond +-1)" if "domain" in text else text or type(exc).__name__)
-    return _failed(model, "arithmetic_error", f"{reason}{when} in {where}",
-                   "check that element's expression and parameters at that time (e.g. 1/t at t = 0, "
-                   "sqrt of a negative value); shift, clamp or regularise it", element)
+    fix = ("the law's derivative is infinite there (sqrt(f), log(f) at f = 0): start away from that point "
+           "(an initial value) or use an explicit solver, which needs no Jacobian (--solver RK45)"
+           if where.startswith("the Jacobian") else
+           "check that element's expression and parameters at that time (e.g. 1/t at t = 0, "
+           "sqrt of a negative value); shift, clamp or regularise it")
+    return _failed(model, "arithmetic_error", f"{reason}{when} in {where}", fix, element)
 
 
 def locate_non_finite(model, t: float, x) -> tuple[str, str | None]:

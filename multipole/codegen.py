@@ -167,7 +167,7 @@ class _Printer(PythonCodePrinter):
         if side is not None:
             return side
         a = self._print(e.args[0])
-        return f"math.copysign(1.0, {a}) if ({a}) != 0 else 0.0"
+        return f"(math.copysign(1.0, {a}) if ({a}) != 0 else 0.0)"    # parenthesised: 1 + sign(f)
 
     def _print_DiracDelta(self, e):
         """The derivative of a step or sign (an ideal Coulomb law ``sign(f)``): 0.  Every step and

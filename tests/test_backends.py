@@ -205,9 +205,14 @@ simulate: {t_end: 0.1, dt_out: 0.05}
 """
 
 
-def test_sign_inside_a_sum_is_evaluated_as_written(nb):
-    """force = d*v + 0.5*(sign(v) + 1) = 0.2*3 + 1 for v = 3 m/s."""
-    res = run_numba(scene(SIGN_LAW))
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_sign_inside_a_sum_is_evaluated_as_written(backend):
+    """force = d*v + 0.5*(sign(v) + 1) = 0.2*3 + 1 for v = 3 m/s (the numpy backend printed the
+    conditional expression of sign unparenthesised and gave 0.2*3 + 0.5)."""
+    if backend == "numba":
+        pytest.importorskip("numba")
+    res = pipeline.run(scene(SIGN_LAW), progress=False, backend=backend)
+    assert res.stats["backend"] == backend
     assert np.allclose(res["brake.force"], 0.2 * 3.0 + 1.0, rtol=1e-12)
 
 

@@ -64,7 +64,7 @@ PROGRESS_CHUNK = 200
 
 
 class _Printer(codegen.Printer):
-    """The kernel's printer, with ``sign`` parenthesised, ``Piecewise`` always total and every
+    """The kernel's printer, with ``Piecewise`` always total and every
     number a float (numba types a list mixing ints and floats as an error); a switch held on its
     side reads the side from the work array."""
 
@@ -77,13 +77,6 @@ class _Printer(codegen.Printer):
         if e.exp.is_Integer and e.exp > 0:        # x**3, not x**3.0: numba multiplies
             return f"{self.parenthesize(e.base, PRECEDENCE['Pow'])}**{int(e.exp)}"
         return super()._print_Pow(e, rational=rational)
-
-    def _print_sign(self, e):
-        side = self._side(e.args[0])
-        if side is not None:          # held on its side during a segment, as in the kernel's printer
-            return side
-        a = self._print(e.args[0])
-        return f"(math.copysign(1.0, {a}) if ({a}) != 0 else 0.0)"
 
     def _print_Piecewise(self, e):
         if self.modes is not None:

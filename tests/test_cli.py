@@ -95,7 +95,9 @@ def test_linearize_modes_match_the_closed_form(capsys):
     assert f"f_n = {1 / np.sqrt(L * C) / (2 * np.pi):.6g} Hz" in capsys.readouterr().out
 
 
-def test_models_are_restored_from_the_disk_cache():
+def test_models_are_restored_from_the_disk_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("MULTIPOLE_CACHE", str(tmp_path / "cache"))   # empty: nothing cached by earlier tests
+    pipeline._MODELS.clear()
     path = ROOT / "diagrams" / "rlc_series.yaml"
     first = pipeline.run(load(path), t_end=0.01, progress=False)
     pipeline._MODELS.clear()                       # as in a new process

@@ -415,9 +415,10 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
         raise MultipoleError("unknown_solver", f"unknown solver {solver!r}",
                              f"use auto or one of {', '.join(integrator.solvers)}")
     plans = model.__dict__.setdefault("_plans", {})      # per model: the estimate and the choice
-    if (solver, t_end, rtol) not in plans:
-        plans[(solver, t_end, rtol)] = expected_steps(model, solver, t_end), None
-    estimate = plans[(solver, t_end, rtol)][0]
+    key = (integrator.name, solver, t_end, rtol)
+    if key not in plans:
+        plans[key] = expected_steps(model, solver, t_end), None
+    estimate = plans[key][0]
     if estimate is not None and estimate[0] > MANY_STEPS:
         warnings.warn(f"{model.name}: the stiffness estimate says this run takes about {estimate[0]:.2g} steps "
                       f"({estimate[1]}); it may run for hours (shorten t_end, or soften the stiffest coupling)",
@@ -463,12 +464,12 @@ class Run:
 def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, x0) -> Result:
     """What every backend shares around its integrator (see :func:`simulate`)."""
     start = time.perf_counter()
-    key = (solver, t_end, rtol)
+    key = (integrator.name, solver, t_end, rtol)
     estimate, plan = model._plans[key]
-    if plan is None:
+    if plan is None:                       # the choice, once per model and run setting
         auto = choose_solver(model, t_end, rtol) if solver == "auto" else None
-        plan = model._plans[key] = estimate, integrator.method(solver, auto)
-        plan = plan[1]
+        plan = integrator.method(solver, auto)
+        model._plans[key] = estimate, plan
     method, reason = plan
     x = np.array(model.x0 if x0 is None else x0, dtype=float)
     schedule, sides = _time_switches(model, x, t_end)

@@ -20,9 +20,11 @@ How a run goes:
    The integrator loops of :mod:`multipole.backends.numba_kernels` do not depend on the
    model (they call it through function addresses): they are compiled once per installation and
    kept in numba's cache.
-3. *Run* — the compiled loop integrates from 0 to ``t_end``, fills the ``dt_out`` grid from the
-   dense output and restarts at the zero crossings of the switching functions; the outputs are
-   evaluated on the grid, also compiled.
+3. *Run* — the shared driver (:func:`multipole.simulate.simulate`: options, grid, ``auto``,
+   time-switch schedule, progress, statistics, errors) calls :class:`NumbaIntegrator`: the
+   compiled loop integrates from 0 to ``t_end``, fills the ``dt_out`` grid from the dense output
+   and restarts at the zero crossings of the switching functions; the outputs are evaluated on
+   the grid, also compiled (:meth:`NumbaModel.outputs_on_grid`).
 
 ``Result.stats`` keeps ``translate_time`` (sympy to source), ``compile_time`` (translation plus
 numba compilation or cache load), ``run_time`` (the compiled integration and output sampling,

@@ -57,8 +57,6 @@ import multipole as mp
 from multipole import CField, I, ModelError, Network, Param, Quantity, element, junction_a, junction_b
 
 MAX_STACK = 100      # largest piezo_stack n a netlist may ask for (checked by the loader)
-_NAMES = ("k_P", "delta_P", "C_P", "m", "R")
-_S = {name: sp.Symbol(name) for name in _NAMES}
 
 
 def literal_zero(value) -> bool:
@@ -77,6 +75,7 @@ _PARAMS = [
     Param("m", "kg", "moving mass at the tip (literal 0: massless, Weber Bild 11)", 0.0, nonnegative=True),
     Param("R", "Ohm", "series resistance of electrodes and leads (literal 0: ideal)", 0.0, nonnegative=True),
 ]
+_S = {p.name: sp.Symbol(p.name) for p in _PARAMS}        # the element's parameters as symbols
 _TERMINALS = {"voltage": "V: terminal voltage e(elec_a) - e(elec_b)", "current": "A: current into elec_a"}
 
 

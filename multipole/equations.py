@@ -76,9 +76,23 @@ class Equations:
         try:
             return self.available[name]
         except KeyError:
-            close = [k for k in self.available if k.split(".")[0] == name.split(".")[0]]
-            raise ModelError("unknown_output", f"unknown output {name!r}",
-                             f"available for this element: {', '.join(sorted(close)[:12]) or 'none'}") from None
+            element = name.split(".")[0]
+            offered = self.user_outputs()
+            close = [k for k in offered if k.split(".")[0] == element]
+            fix = f"available for {element}: {', '.join(close[:16])}{', …' if len(close) > 16 else ''}" if close else \
+                f"no element {element!r} has outputs; elements: {', '.join(sorted({k.split('.')[0] for k in offered})[:16])}"
+            raise ModelError("unknown_output", f"unknown output {name!r}", fix) from None
+
+    def user_outputs(self) -> list:
+        """The output names a netlist can ask for, in its own words: each element's quantities, then
+        the effort and flow of its ports, then the states (the port variables of the primitives an
+        element is built of are outputs too, but not offered)."""
+        if self.analysis is None:
+            return sorted(self.available)
+        flat = self.analysis.flat
+        names = list(flat.quantities) + [f"{p}.{k}" for p in sorted(flat.external_ports) for k in "ef"] + \
+            [s.name for s in self.states]
+        return [n for n in dict.fromkeys(names) if n in self.available]
 
     def definitions(self) -> dict:
         """variable -> symbolic value for every explicitly solved variable."""
@@ -106,8 +120,15 @@ class Equations:
         lines = [f"# {self.name}: explicit ODE x' = f(t, x, u), {len(self.states)} state(s)", "", "States:"]
         for s, x0 in zip(self.states, self.initial_values()):
             lines.append(f"  {s.name}  [{s.unit}]  initial {x0:g}")
+        show, who = self.netlist_names()
         if self.inputs:
-            lines += ["", "Inputs:"] + [f"  {u} = {e}" for u, e in self.inputs.items()]
+            lines += ["", "Inputs:"] + [f"  {u} = {show(e)}" for u, e in self.inputs.items()]
+        values = {str(e): show(e) for e in self.inputs.values() if str(e) != show(e)}
+
+        def note(text):         # a source's note quotes its value: with steps as the netlist wrote them
+            for raw, shown in values.items():
+                text = text.replace(raw, shown)
+            return text
         lines += ["", "Parameters:"] + [f"  {p} = {v:g}" for p, v in sorted(self.params.items(), key=lambda kv: str(kv[0]))]
         size = sum(len(b.variables) for b in self.blocks)
         lines += ["", "State equations:"]
@@ -115,39 +136,87 @@ class Equations:
             lines.append(f"  not expanded: {size} variables; the evaluation order below computes them in turn")
         else:
             for s, d in zip(self.states, self.derivatives):
-                lines.append(f"  d/dt {s.name} = {self.substituted(d)}")
+                lines.append(f"  d/dt {s.name} = {show(self.substituted(d))}")
             for name in outputs:
-                lines.append(f"  {name} = {self.substituted(self.output(name))}")
+                lines.append(f"  {name} = {show(self.substituted(self.output(name)))}")
             numeric = [b for b in self.blocks if b.solution is None]
             if numeric:
-                unknowns = [str(v) for b in numeric for v in b.variables]
+                unknowns = [show(v) for b in numeric for v in b.variables]
                 verb = "solves" if len(unknowns) == 1 else "solve"
                 lines.append(f"  where {', '.join(unknowns)} {verb} the algebraic loop(s) below at every "
                              "evaluation (no closed form)")
         lines += ["", "Evaluation order (causal assignments):"]
         for b in self.blocks:
             if b.kind == "explicit":
-                lines.append(f"  {b.variables[0]} = {b.solution[0]}    [{b.owners[0]}: {b.notes[0]}]")
+                lines.append(f"  {show(b.variables[0])} = {show(b.solution[0])}    [{who(b.owners[0])}: {note(b.notes[0])}]")
             else:
                 how = "solved symbolically" if b.solution is not None else \
                     "solved numerically (LU)" if b.kind == "linear" else "solved by Newton"
-                lines.append(f"  {b.kind} loop for ({', '.join(map(str, b.variables))}), {how}:")
+                lines.append(f"  {b.kind} loop for ({', '.join(map(show, b.variables))}), {how}:")
                 for r, o in zip(b.residuals, b.owners):
-                    lines.append(f"      0 = {r}    [{o}]")
+                    lines.append(f"      0 = {show(r)}    [{who(o)}]")
                 if b.solution is not None:
-                    lines += [f"    => {v} = {s}" for v, s in zip(b.variables, b.solution)]
+                    lines += [f"    => {show(v)} = {show(s)}" for v, s in zip(b.variables, b.solution)]
         if steps:
             lines += ["", "Back-calculation (Weber's chains):"]
             targets = list(outputs) + [f"d/dt {s.name}" for s in self.states]
             for name, expr in zip(targets, [self.output(o) for o in outputs] + list(self.derivatives)):
-                lines += self.chain(name, expr)
+                lines += self.chain(name, expr, (show, who))
         return "\n".join(lines)
 
-    def chain(self, name, expr) -> list[str]:
+    def netlist_names(self):
+        """``(show, who)`` for printing the evaluation order in the netlist's names: ``show(expr)``
+        writes a port variable as the netlist port that carries it (``load.a.e``, not the inner
+        junction's ``load.j.a.e``), else as the element quantity equal to it (``shaft.force``), else
+        as ``element.innerN.e`` (a variable inside an element that no port shows), and steps as
+        ``step()``; ``who(owner)`` names an equation's element, or a node by the ports it joins."""
+        if self.analysis is None:
+            return str, str
+        from .checks import Names, user_expression
+        names, flat, aliases = Names(self.analysis), self.analysis.flat, self.analysis.aliases
+        quantity = {}
+        for q in flat.quantities:
+            quantity.setdefault(self.available.get(q), q)
+        mapping, count = {}, {}
+
+        def port_variable(sym):
+            name = sym.name
+            if name.startswith("der(") and name.endswith(")"):
+                inner = port_variable(var(name[4:-1]))
+                return f"der({inner})" if inner else None
+            if name[-2:] not in (".e", ".f") or name[:-2] not in flat.port_domains:
+                return None
+            kind, (rep, sign) = name[-1], aliases.get(sym, (sym, 1))
+            element = flat.element_of(name)
+            for v in [sym] + sorted(names.members.get(rep, []), key=lambda v: (flat.element_of(v.name) != element,
+                                                                                v.name)):
+                if v.name.endswith("." + kind) and aliases.get(v, (v, 1))[1] == sign and names.port(v.name[:-2]):
+                    return f"{names.port(v.name[:-2])}.{kind}"
+            if sym in quantity:
+                return quantity[sym]
+            count[element] = count.get(element, 0) + 1
+            return f"{element}.inner{count[element]}.{kind}"
+
+        def show(expr):
+            expr = sp.sympify(expr)
+            for sym in sorted(expr.free_symbols - set(mapping), key=lambda s: s.name):
+                text = port_variable(sym)
+                mapping[sym] = sp.Symbol(text) if text else sym
+            return user_expression(expr.xreplace(mapping))
+
+        def who(owner):
+            if owner.startswith("node(") and owner.endswith(")"):
+                ports = [names.port(p) or flat.element_of(p) for p in owner[5:-1].split(", ")]
+                return "node " + ", ".join(dict.fromkeys(ports))
+            return owner if owner == "loop" else flat.element_of(owner)
+        return show, who
+
+    def chain(self, name, expr, shown=None) -> list[str]:
         """One substitution per line from ``expr`` back to states and inputs."""
+        show, who = shown or self.netlist_names()
         defs = self.definitions()
         owner = {v: (b.owners[0] if b.kind == "explicit" else "loop") for b in self.blocks for v in b.variables}
-        lines = [f"  {name}", f"    = {expr}"]
+        lines = [f"  {name}", f"    = {show(expr)}"]
         seen = 0
         while seen < 200:
             pending = [v for v in sp.sympify(expr).free_symbols if v in defs]
@@ -155,7 +224,7 @@ class Equations:
                 break
             v = max(pending, key=lambda s: self._order(s))
             expr = sp.sympify(expr).xreplace({v: defs[v]})
-            lines.append(f"    = {expr}    [{v} from {owner.get(v, '?')}]")
+            lines.append(f"    = {show(expr)}    [{show(v)} from {who(owner.get(v, '?'))}]")
             seen += 1
         return lines
 

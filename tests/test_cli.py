@@ -159,5 +159,5 @@ def test_python_output_runs_on_its_own_and_equals_the_model(capsys):
 def test_text_equations_say_when_a_loop_has_no_closed_form(capsys):
     assert main(["equations", str(ROOT / "diagrams" / "hard" / "nonlinear_loop.yaml")]) == 0
     text = capsys.readouterr().out
-    assert "where d_1.j.b.f solves the algebraic loop(s) below" in text and "no closed form" in text
-    assert "newton loop for (d_1.j.b.f)" in text      # torn: Newton on one unknown, the rest explicit
+    assert "where d_1.b.f solves the algebraic loop(s) below" in text and "no closed form" in text
+    assert "newton loop for (d_1.b.f)" in text      # torn: Newton on one unknown, the rest explicit

@@ -17,7 +17,7 @@ from multipole.causality import Finding
 from multipole.checks import Context, listing, user_expression
 from multipole.cli import main
 from multipole.diagnostics import REGISTRY, run_checks
-from multipole.errors import MultipoleWarning
+from multipole.errors import MultipoleError, MultipoleWarning
 from multipole.netlist import load
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -298,3 +298,48 @@ def test_the_forgotten_ground_example_of_the_page_is_what_check_prints(tmp_path,
     monkeypatch.chdir(tmp_path)
     assert main(["check", "dc_motor_open.yaml"]) == 0
     assert capsys.readouterr().out.rstrip("\n") == shown
+
+
+#: a port variable in printed equations: ``element.port.e`` of the netlist, or ``element.innerN.e``
+PORT_VARIABLE = re.compile(r"\b(\w+(?:\.\w+)+)\.[ef]\b")
+
+
+def internal_names_in_equations(text: str, flat) -> list:
+    """Internal names in the equation text or an output list, where port variables belong (so the
+    port-variable pattern of :data:`INTERNAL` is replaced by: every ``x.y.e`` names a netlist port
+    or a numbered inner variable of an element)."""
+    bad = [f"{what}: {m.group(0)!r}" for rx, what in INTERNAL[:3] + INTERNAL[4:5] for m in [rx.search(text)] if m]
+    return bad + [f"a port variable no netlist port shows: {m.group(0)!r}" for m in PORT_VARIABLE.finditer(text)
+                  if m.group(1) not in flat.external_ports and not re.fullmatch(r"\w+\.inner\d+", m.group(1))]
+
+
+@pytest.mark.parametrize("path", sorted(DIAGRAMS.rglob("*.yaml")), ids=lambda p: p.stem)
+def test_equations_steps_and_unknown_output_fix_use_the_netlists_names(path):
+    """``multipole equations --steps`` (state equations, evaluation order, Weber's chains) and the
+    fix of an unknown output name the netlist's ports, elements and expressions: no node(...), no
+    inner junction, no sympy Heaviside, no port variable of a primitive an element is built of."""
+    sc = load(path)
+    if not pipeline.check(sc).ok:
+        pytest.skip("not well-posed (on purpose): no equations to print")
+    eq = pipeline.equations(sc)
+    flat = eq.analysis.flat
+    text = eq.to_text(sc.outputs, steps=True)
+    assert internal_names_in_equations(text, flat) == [], internal_names_in_equations(text, flat)
+    element = next(iter(flat.elements)) if not sc.outputs else sc.outputs[0].split(".")[0]
+    with pytest.raises(MultipoleError) as err:
+        eq.output(f"{element}.no_such_output")
+    assert err.value.code == "unknown_output"
+    offered = [o for o in err.value.fix.split(": ", 1)[1].split(", ") if o != "…"]
+    assert internal_names_in_equations(err.value.fix, flat) == [], err.value.fix
+    assert all(o in flat.quantities or o[:-2] in flat.external_ports or o in eq.state_names for o in offered), offered
+    assert [q for q in flat.quantities if q.startswith(element + ".")][:1] == \
+        [o for o in offered if o in flat.quantities][:1]      # the element's quantities come first
+
+
+def test_equation_patterns_catch_inner_names():
+    """The scan above can fail: the names the equations printed before (node owners, inner junction
+    ports, the mass's inner port) are all caught."""
+    flat = pipeline.equations(load(DIAGRAMS / "drive_train.yaml")).analysis.flat
+    for bad in ("load.j.a.e = shaft.p.e", "[node(gear.b, shaft.j.a)]", "rotor.p.e", "k*Heaviside(q)"):
+        assert internal_names_in_equations(bad, flat), bad
+    assert internal_names_in_equations("load.a.e = rotor.inner1.e + step(q)", flat) == []

@@ -1,7 +1,7 @@
 """Scaling of the compile path, of auto's stiffness estimate and of the generated right-hand side
 with the model size.
 
-Chains of N = 10, 100, 1000 mass-spring pairs (elements/scenes.py: mass_spring_chain).  For each N:
+Chains of N = 10, 100, 1000 mass-spring pairs (multipole_models.mass_spring_chain).  For each N:
 check time (flatten + analyse), compile time (flatten + analyse + assemble + codegen, split by
 stage; the repeat with the median compile time of ``--repeats``), the time of ``auto``'s stiffness
 estimate (:func:`multipole.simulate.choose_solver`: all eigenvalues up to 200 states, an Arnoldi
@@ -15,8 +15,8 @@ peak memory, what a user waits for).  Log-log slopes between consecutive sizes.
     python benchmarks/chain_scaling.py --stack 10 100
 
 ``--stack`` times check + compile of ``diagrams/weber/piezo_stack.yaml`` with n discs as written and
-with m: 0 and R: 0 (storages in derivative causality).  Chains from 500 pairs on and stacks over 50
-discs exceed the loader's input limits (docs/netlist.md, Limits): the benchmark lifts them.
+with m: 0 and R: 0 (storages in derivative causality).  Every run stays inside the loader's input
+limits (docs/netlist.md, Limits): a 10,000-pair chain is 20,002 elements and 1.3 MB.
 
 ``--estimate-only`` times the stiffness estimate alone on the hand-written chain (no compile), and
 with ``--before`` also the dense ``eigvals`` of the full Jacobian the estimate replaced.
@@ -36,8 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from elements.scenes import hand_model, mass_spring_chain
-import multipole.netlist as netlist
+from multipole_models import hand_model, mass_spring_chain
 from multipole.bench import _time_calls, write_rows
 from multipole.causality import analyse
 from multipole.codegen import compile_model
@@ -52,10 +51,6 @@ FIELDS = ["N", "states", "load_s", "flatten_s", "analyse_s", "check_s", "assembl
           "sim_steps", "per_call_in_run_us", "per_step_us", "sim_max_dev", "process_s", "process_rss_mb", "load_avg"]
 #: horizon of the whole-process run [s]: short, so that set-up dominates as in the issue's measurement
 PROCESS_T_END = 0.01
-#: the loader refuses more than MAX_ELEMENTS elements and files over MAX_FILE_BYTES (untrusted input,
-#: docs/netlist.md, Limits): chains from 500 pairs on exceed them, so the whole-process run lifts them
-LIFT_LIMITS = ("import sys; import multipole.netlist as nl; nl.MAX_ELEMENTS = 10**6; nl.MAX_FILE_BYTES = 1 << 27; "
-               "nl.MAX_YAML_NODES = 10**8; ")
 #: the generated Jacobian is a dense n x n array: its per-call time is measured up to this many states
 JAC_MAX_STATES = 4000
 
@@ -64,7 +59,7 @@ def measure(n: int) -> dict:
     """Times of every stage for a chain of ``n`` pairs [s, µs per call]."""
     text = mass_spring_chain(n)
     t0 = time.perf_counter()
-    scene = _loads_unbounded(text, f"chain{n}.yaml")
+    scene = loads(text, f"chain{n}.yaml")
     t1 = time.perf_counter()
     flat = flatten(scene.network)
     t2 = time.perf_counter()
@@ -95,23 +90,13 @@ def measure(n: int) -> dict:
             "per_step_us": 1e6 * res.stats["wall_time"] / max(res.stats["steps"], 1), "sim_max_dev": dev}
 
 
-def _loads_unbounded(text: str, name: str):
-    """``loads`` with the loader's size limits lifted (see :data:`LIFT_LIMITS`)."""
-    saved = netlist.MAX_ELEMENTS, netlist.MAX_FILE_BYTES, netlist.MAX_YAML_NODES
-    netlist.MAX_ELEMENTS, netlist.MAX_FILE_BYTES, netlist.MAX_YAML_NODES = 10**6, 1 << 27, 10**8
-    try:
-        return loads(text, name)
-    finally:
-        netlist.MAX_ELEMENTS, netlist.MAX_FILE_BYTES, netlist.MAX_YAML_NODES = saved
-
-
 def whole_process(n: int) -> tuple[float, float]:
     """Wall time [s] and peak resident memory [MB] of ``multipole simulate`` on a chain of ``n`` pairs
     with a fresh model cache, in its own process (``os.wait4`` gives that child's own peak)."""
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"chain{n}.yaml"
         path.write_text(mass_spring_chain(n), encoding="utf-8")
-        cmd = [sys.executable, "-c", LIFT_LIMITS + "from multipole.cli import main; sys.exit(main())", "simulate",
+        cmd = [sys.executable, "-m", "multipole.cli", "simulate",
                str(path), "--t-end", str(PROCESS_T_END), "--quiet", "--out", str(Path(tmp) / "r.csv")]
         env = {**os.environ, "MULTIPOLE_CACHE": str(Path(tmp) / "cache")}
         t0 = time.perf_counter()
@@ -127,7 +112,7 @@ def estimate_only(sizes, before=False) -> None:
     """Time the stiffness estimate alone on the hand-written chains (no compile) [s]; with ``before``
     also dense ``eigvals`` of the full Jacobian (O(n³): minutes from 2000 states on)."""
     for n in sizes:
-        hand = hand_model(_loads_unbounded(mass_spring_chain(n), f"chain{n}.yaml"))
+        hand = hand_model(loads(mass_spring_chain(n), f"chain{n}.yaml"))
         t0 = time.perf_counter()
         name, reason = choose_solver(hand, 1.0, 1e-6)
         line = f"N = {n}: estimate {time.perf_counter() - t0:.3g} s ({name}; {reason.rpartition('; ')[2]})"

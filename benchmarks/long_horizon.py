@@ -2,7 +2,7 @@
 
     python benchmarks/long_horizon.py [--periods 10000] [--rtol 1e-6]
 
-The scene is diagrams/hard/two_mass_long.yaml (elements/scenes.py: two_mass_oscillator).  Energy
+The scene is diagrams/hard/two_mass_long.yaml (multipole_models.two_mass_oscillator).  Energy
 ``E = m1 v1²/2 + m2 v2²/2 + k1 q1²/2 + k2 q2²/2`` is evaluated on the output grid (four samples per
 slow period); reported: the largest relative energy error in the first and the last tenth of the
 run and at the end, the final error of ``m1.v`` against the closed form, wall time and nfev.
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from elements.scenes import _TWO_MASS, _two_mass_matrix, _two_mass_x0, linear_response, two_mass_oscillator
+from multipole_models import _TWO_MASS, _two_mass_matrix, _two_mass_x0, linear_response, two_mass_oscillator
 from multipole.bench import write_rows
 from multipole import pipeline
 from multipole.netlist import loads

@@ -1,4 +1,4 @@
-"""Write diagrams/hard/*.yaml from the scene builders in elements/scenes.py.
+"""Write diagrams/hard/*.yaml from the scene builders in multipole_models.
 
     python benchmarks/make_hard_scenes.py
 
@@ -6,7 +6,7 @@ tests/test_hard_cases.py checks that the files are up to date.
 """
 from pathlib import Path
 
-from elements.scenes import HARD_SCENES
+from multipole_models import HARD_SCENES
 
 if __name__ == "__main__":
     out = Path(__file__).resolve().parents[1] / "diagrams" / "hard"

@@ -47,7 +47,7 @@ def _target(ok: bool) -> str:
 
 def section_rhs(reports, chains) -> list:
     lines = ["## 1. Generated right-hand side against hand-written numpy", "",
-             "Same equations, same state vector: the hand-written models in `elements/scenes.py` are written "
+             "Same equations, same state vector: the hand-written models in `multipole_models` are written "
              "from the physics (`tests/test_hand_models.py` checks that both right-hand sides and Jacobians agree "
              "to round-off at random states on every bench scene). Per call: median time of one `rhs(t, x)` call.  "
              "Whole run: `multipole` (generated model through `multipole.simulate`) against "
@@ -129,7 +129,7 @@ def section_naive(reports) -> list:
 
 def section_chains(chains) -> list:
     lines = ["## 3. Scaling with model size: mass–spring chains", "",
-             "Chains of N mass–spring pairs (2N states), `elements/scenes.py: mass_spring_chain`.  Check = "
+             "Chains of N mass–spring pairs (2N states), `multipole_models.mass_spring_chain`.  Check = "
              "flatten + causality analysis; compile = flatten + analyse + assemble + code generation and "
              "byte-compilation; estimate = `auto`'s stiffness estimate (`multipole.simulate.choose_solver`); whole "
              "process = `multipole simulate chain.yaml --t-end 0.01` in its own process with a fresh model cache "
@@ -248,7 +248,7 @@ def _loose_stick_slip(reports) -> str:
 def section_hard(long_rows, stick_rows, reports=()) -> list:
     lines = ["## 5. Hard cases: what the numbers say", "",
              "The hard cases live in `diagrams/hard/` (written by `benchmarks/make_hard_scenes.py` from "
-             "`elements/scenes.py`) and are asserted by `tests/test_hard_cases.py`.", "",
+             "`multipole_models`) and are asserted by `tests/test_hard_cases.py`.", "",
              "### Long horizon: energy drift over 10⁴ periods", "",
              "Conservative two-mass oscillator (`two_mass_long`).  Energy error on the output grid (four samples "
              "per slow period): the largest in the first and the last tenth of the run, and at the end.  BDF and "
@@ -266,7 +266,7 @@ def section_hard(long_rows, stick_rows, reports=()) -> list:
               "usual (last column).", "", "![long horizon](figures/bench_long_horizon.png)", "",
               "### Stick-slip: error of the regularised friction law", "",
               "Friction `(F_k + (F_s - F_k)·exp(-(f/v_s)²))·tanh(f/v_reg)` against the exact piecewise Coulomb "
-              "solution (`elements/scenes.py: stick_slip_exact`), Radau at rtol 1e-8 (last column: rtol "
+              "solution (`multipole_models.stick_slip_exact`), Radau at rtol 1e-8 (last column: rtol "
               "1e-11).  The scene `diagrams/hard/stick_slip.yaml` uses v_reg = 1e-6, v_s = 1e-4 m/s.", "",
               "| v_reg [m/s] | v_s [m/s] | stiffness F_s/(m v_reg) [1/s] | position error | breakaway time error [s] | "
               "steps | nfev | njev | position error at rtol 1e-11 |", "|---|---|---|---|---|---|---|---|---|"]
@@ -355,7 +355,7 @@ def section_backend(reports, old_text: str) -> list:
         lines += [f"### `{name}` against the hand-written scipy model at equal error", "",
                   f"Target of the issue: ≥ {SPEEDUP_TARGET:g}× less wall time than the hand-written scipy model of the "
                   "same equations for a whole simulation at equal error, on every bench scene.  Measured: for each "
-                  "bench scene the hand-written model (`elements/scenes.py`, via the `multipole.hand_models` entry "
+                  "bench scene the hand-written model (`multipole_models`, via the `multipole.hand_models` entry "
                   "points) runs with `solve_ivp` and RK45, DOP853, Radau, BDF and LSODA (analytic Jacobian for the "
                   "implicit ones) over the whole tolerance ladder, against the same reference as every other run.  "
                   f"For each error level ({levels}) the fastest hand-written run reaching it is set against the "

@@ -3,7 +3,7 @@
     python benchmarks/stick_slip_regularisation.py
 
 For (v_reg, v_s) from coarse to fine, with v_s = 100 v_reg and v_s = 1000 v_reg, the scene
-stick_slip (elements/scenes.py) is run with Radau at rtol 1e-8 and compared with
+stick_slip (multipole_models) is run with Radau at rtol 1e-8 and compared with
 ``stick_slip_exact``: the largest position error relative to the largest deflection, the error of
 the first breakaway time (both detected as the slip speed passing 1 mm/s), the work (steps, nfev,
 njev), and the position error again at rtol 1e-11 (if it does not change, the error is the
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from elements.scenes import stick_slip, stick_slip_exact
+from multipole_models import stick_slip, stick_slip_exact
 from multipole.bench import write_rows
 from multipole import pipeline
 from multipole.netlist import loads

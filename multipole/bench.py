@@ -28,6 +28,7 @@ Reference of a scene: the ``reference`` mapping of its netlist::
       expression: "9.4 - exp(-0.9*t)*..."   # closed_form only: a formula of t and the scene's parameters
       energy: "0.5*J*flywheel.omega**2 + ..."  # optional: a conserved quantity of outputs and parameters
       t_end: 2.0                  # optional: horizon of the bench (default: simulate.t_end)
+      hand_model: drive_train     # optional: the hand-written model the entry points pair with the scene
 
 ``closed_form`` formulas go through :func:`multipole.expressions.parse_expression` (the netlist
 whitelist; never ``eval``).  ``tight`` (and scenes without a reference) use the solution at
@@ -148,9 +149,10 @@ def _compile(text, scene: Scene, outputs, what: str):
 
 
 def reference_spec(scene: Scene) -> dict:
-    """The scene's ``reference`` mapping, checked (kind, output, expression, energy, t_end)."""
+    """The scene's ``reference`` mapping, checked (kind, output, expression, energy, t_end; ``hand_model``
+    names the hand-written model the ``multipole.hand_models`` entry points pair with the scene)."""
     spec = dict(scene.reference or {"kind": "tight"})
-    allowed = {"kind", "output", "expression", "energy", "t_end"}
+    allowed = {"kind", "output", "expression", "energy", "t_end", "hand_model"}
     unknown = set(spec) - allowed
     if unknown:
         raise MultipoleError("bad_reference", f"{scene.path}: unknown reference key {sorted(unknown)[0]!r}",

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from elements import scenes as S
+import multipole_models as S
 from multipole import MultipoleError, NetlistError, pipeline
 from multipole.bench import (build_reference, default_scenes, explicit_stability_bound, reference_spec,
                              rk_stability_radius)

@@ -1,6 +1,6 @@
 """Hand-written numpy models of the bench scenes against the generated models.
 
-The hand-written models (``elements/scenes.py``) are written from the physics; the generated ones
+The hand-written models (``multipole_models``) are written from the physics; the generated ones
 come out of the causality analyser and the code generator.  Agreement of right-hand sides,
 Jacobians and outputs at random states, to round-off, checks both: neither side is derived from the
 other.  The bench finds hand models through the ``multipole.hand_models`` entry points only.
@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from elements import scenes as S
+import multipole_models as S
 from multipole import pipeline
 from multipole.bench import default_scenes, hand_model, solve_hand
 from multipole.netlist import load, loads
@@ -164,7 +164,7 @@ def test_hand_run_stops_at_its_evaluation_budget():
 def test_hand_models_come_through_the_entry_point_group():
     from importlib.metadata import entry_points
     eps = entry_points(group="multipole.hand_models")
-    assert any(ep.value == "elements.scenes:hand_model" for ep in eps)
+    assert any(ep.value == "multipole_models:hand_model" for ep in eps)
     assert hand_model(loads(S.mathieu_oscillator(), "m.yaml")) is not None
     other = load(ROOT / "diagrams" / "power_split_rigid.yaml")
     assert hand_model(other) is None

@@ -22,7 +22,7 @@ from scipy.integrate import DOP853, solve_ivp
 from scipy.linalg import expm
 from scipy.optimize import brentq
 
-from elements import scenes as S
+import multipole_models as S
 from multipole import IllPosedError, codegen, pipeline
 from multipole.bench import explicit_stability_bound
 from multipole.expressions import parse_expression

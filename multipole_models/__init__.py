@@ -1,4 +1,7 @@
-"""Scalable scene builders shared by tests, benchmarks and ``multipole bench`` (like PyDy's models).
+"""Test and benchmark fixtures: scalable scene builders and hand-written reference models, shared
+by the tests, ``benchmarks/``, the docs and ``multipole bench`` (like PyDy's ``models.py``).
+
+They are not machine elements, so they live outside the element library ``elements/``.
 
 Each builder returns the YAML text of a netlist (load it with :func:`multipole.loads`); the scenes
 in ``diagrams/hard/`` are written from these builders by ``python benchmarks/make_hard_scenes.py``
@@ -6,9 +9,12 @@ and a test keeps them in step.  Where a scene is linear, the builder also derive
 reference from a *hand-written* state matrix (written from the physics here, not taken from the
 generated code) and stores it in the scene's ``reference`` mapping.
 
-:data:`HAND_MODELS` maps a scene name to a factory of a :class:`HandModel`: a hand-written numpy
+:data:`HAND_MODELS` maps a ``hand_model`` key to a factory of a :class:`HandModel`: a hand-written numpy
 right-hand side of the same equations (with its Jacobian), used by the bench to measure the cost
 of the generated code against hand-written code, and by the tests as an independent computation.
+
+A scene is paired with its hand-written model explicitly, by ``reference: {hand_model: KEY}`` in
+the netlist (the bench finds :func:`hand_model` through the ``multipole.hand_models`` entry point).
 
 Conventions used below (those of ``elements/basic.py``): a spring's state ``q`` is its compression
 ``∫(f_a - f_b) dt`` [m] and its force ``c*q`` [N] pushes its a-side neighbour back; a body's state is
@@ -157,7 +163,8 @@ def mass_spring_chain(n: int, m: float = 1.0, c: float = 1.0e4, F0: float = 10.0
         lines.append(f"  - [k{i}.b, m{i}.a]")
         lines.append(f"  - [m{i}.b, {'k%d.a' % (i + 1) if i < n else 'force.p'}]")
     lines += [f"outputs: [m{n}.v, k1.force]",
-              f"simulate: {{t_end: {_num(t_end)}, dt_out: {_num(t_end / 200)}, rtol: 1.0e-6, atol: 1.0e-9}}"]
+              f"simulate: {{t_end: {_num(t_end)}, dt_out: {_num(t_end / 200)}, rtol: 1.0e-6, atol: 1.0e-9}}",
+              "reference: {kind: tight, hand_model: mass_spring_chain}"]
     return "\n".join(lines) + "\n"
 
 
@@ -242,6 +249,7 @@ outputs: [m1.v, m2.v, k1.deflection, k2.deflection]
 simulate: {{t_end: {_num(t_end)}, dt_out: {_num(t_end / (40 * periods))}, solver: auto, rtol: 1.0e-8, atol: 1.0e-10}}
 reference:
   kind: closed_form
+  hand_model: two_mass_oscillator
   output: m1.v
   expression: "{expr}"
   energy: "0.5*m1*m1.v**2 + 0.5*m2*m2.v**2 + 0.5*k1*k1.deflection**2 + 0.5*k2*k2.deflection**2"
@@ -304,6 +312,7 @@ outputs: [load.omega, rotor.omega, shaft.force]
 simulate: {{t_end: {_num(t_end)}, dt_out: {_num(t_end / 300)}, solver: auto, rtol: 1.0e-6, atol: 1.0e-9}}
 reference:
   kind: closed_form
+  hand_model: stiff_drive_train
   output: load.omega
   expression: "{expr}"
 bench: true
@@ -344,7 +353,7 @@ connections:
   - [body.a, spring.p]
 outputs: [spring.q, body.v]
 simulate: {{t_end: {_num(t_end)}, dt_out: {_num(np.pi / 20)}, solver: auto, rtol: 1.0e-9, atol: 1.0e-12}}
-reference: {{kind: tight, output: spring.q}}
+reference: {{kind: tight, hand_model: mathieu, output: spring.q}}
 bench: true
 """
 
@@ -409,7 +418,7 @@ connections:
   - [spring.b, wall.p]
 outputs: [body.v, spring.deflection, friction.force]
 simulate: {{t_end: {_num(t_end)}, dt_out: 0.002, solver: auto, rtol: 1.0e-8, atol: 1.0e-10}}
-reference: {{kind: tight, output: spring.deflection}}
+reference: {{kind: tight, hand_model: stick_slip, output: spring.deflection}}
 bench: true
 """
 
@@ -503,6 +512,7 @@ outputs: [rope.q, load.v, rope.p.e]
 simulate: {{t_end: {_num(t_end)}, dt_out: 0.001, solver: auto, rtol: 1.0e-9, atol: 1.0e-12}}
 reference:
   kind: tight
+  hand_model: slack_rope
   output: rope.q
   energy: "0.5*m*load.v**2 + m*g*rope.q + 0.5*k*min(rope.q, 0)**2"
 bench: true
@@ -590,6 +600,7 @@ connections:
 simulate: {{t_end: {_num(t_end)}, dt_out: 0.001, solver: auto, rtol: 1.0e-9, atol: 1.0e-12}}
 reference:
   kind: tight
+  hand_model: slider_crank
   output: flywheel.omega
   energy: "0.5*J*flywheel.omega**2 + 0.5*m*piston.v**2 + F0*(r*cos(crank.q) + sqrt(l**2 - r**2*sin(crank.q)**2))"
 bench: true
@@ -699,7 +710,7 @@ connections:
   - [d_2.b, body.a]
 outputs: [body.v, d_1.force, d_2.force]
 simulate: {{t_end: {_num(t_end)}, dt_out: 0.01, solver: auto, rtol: 1.0e-9, atol: 1.0e-12}}
-reference: {{kind: tight, output: body.v}}
+reference: {{kind: tight, hand_model: nonlinear_loop, output: body.v}}
 bench: true
 """
 
@@ -851,7 +862,6 @@ HARD_SCENES = _hard()
 #: scene name (or its start) -> factory(parameters of the scene) of a hand-written model
 HAND_MODELS: dict = {
     "two_mass_oscillator": _two_mass_hand,
-    "two_mass_long": _two_mass_hand,
     "stiff_drive_train": _stiff_hand,
     "drive_train": _drive_train_hand,
     "rlc_series": _rlc_hand,
@@ -864,15 +874,12 @@ HAND_MODELS: dict = {
 
 
 def hand_model(scene) -> HandModel | None:
-    """The hand-written model of a loaded scene (``None`` if there is none).
-
-    Scenes are matched by name: ``mass_spring_chain_<n>``, or a name that starts with a key of
-    :data:`HAND_MODELS` (``two_mass_oscillator_short`` uses the two-mass model).
-    """
+    """The hand-written model a loaded scene names in ``reference: {hand_model: KEY}`` (a key of
+    :data:`HAND_MODELS`, or ``mass_spring_chain``, whose length is the number of masses in the
+    scene); ``None`` if the scene names none or a key this module does not know."""
+    key = (scene.reference or {}).get("hand_model")
     params = {k: float(v) for k, v in scene.network.params.items()}
-    if scene.name.startswith("mass_spring_chain_"):
-        return _chain_hand(params, int(scene.name.rsplit("_", 1)[1]))
-    for key in sorted(HAND_MODELS, key=len, reverse=True):
-        if scene.name.startswith(key):
-            return HAND_MODELS[key](params)
-    return None
+    if key == "mass_spring_chain":
+        return _chain_hand(params, sum(t == "mass" for t in scene.element_types.values()))
+    factory = HAND_MODELS.get(key) if isinstance(key, str) else None
+    return factory(params) if factory else None

@@ -487,6 +487,26 @@ def test_compiled_jacobian_through_algebraic_loops_matches_differences(nb, path)
         column = (np.asarray(reference.rhs(0.01, up)) - np.asarray(reference.rhs(0.01, down))) / (2 * h)
         assert np.allclose(J[:, j], column, rtol=1e-5, atol=1e-6 * max(1.0, np.abs(column).max()))
 
+
+def test_ctrl_c_in_the_compiled_loop_is_interrupted_at_the_time_reached(nb, monkeypatch):
+    """The shared driver turns Ctrl-C into Interrupted(t) on every backend: here the compiled loop
+    runs 5 steps, then Ctrl-C arrives; t is where those steps ended."""
+    from multipole.errors import Interrupted
+    K, real, reached = nb.K, nb.K.integrate, []
+
+    def integrate_then_ctrl_c(*args):
+        if reached:
+            raise KeyboardInterrupt
+        real(*args[:-1], 5)
+        reached.append(float(args[4][K.F_T]))       # fs[F_T]: the time reached
+    sc = load(DRIVE)
+    eq = pipeline.equations(sc)
+    nb.run.compile(eq, sc.outputs)                 # compiled (and kept on eq) before the patch
+    monkeypatch.setattr(K, "integrate", integrate_then_ctrl_c)
+    with pytest.raises(Interrupted) as err:
+        nb.run(eq, sc.outputs, 1.0, None, "RK45", progress=False)
+    assert 0.0 < reached[0] < 1.0 and err.value.t == reached[0]
+
 def test_backends_are_loaded_from_their_entry_point_group(monkeypatch):
     """Both bundled backends come from the ``multipole.backends`` entry points of the installed
     distribution (pyproject.toml), not from a list inside the kernel."""

@@ -38,10 +38,12 @@ def article(word: str) -> str:
 
 
 def user_expression(expr) -> str:
-    """A sympy expression in netlist syntax: ``Heaviside(x, 1)`` is written ``step(x)``."""
+    """A sympy expression in netlist syntax: ``Heaviside(x, 1)`` is written ``step(x)``, ``Max``,
+    ``Min`` and ``Abs`` as ``max``, ``min`` and ``abs``."""
     expr = sp.sympify(expr)
     step = sp.Function("step")
-    return str(expr.replace(sp.Heaviside, lambda x, *_: step(x)))
+    text = str(expr.replace(sp.Heaviside, lambda x, *_: step(x)))
+    return re.sub(r"\b(Max|Min|Abs)\(", lambda m: m.group(1).lower() + "(", text)
 
 
 # ---------------------------------------------------------------------------------------------

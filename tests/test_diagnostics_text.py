@@ -282,6 +282,7 @@ def test_user_expression_writes_steps_as_the_netlist_does():
     import sympy as sp
     t, w0 = sp.symbols("t w0")
     assert user_expression(w0 * sp.Heaviside(t - sp.Rational(1, 10), 1)) == "w0*step(t - 1/10)"
+    assert user_expression(sp.Max(0, t) + sp.Abs(w0) * sp.Min(t, 1)) == "abs(w0)*min(1, t) + max(0, t)"
     assert listing(["a"]) == "a" and listing(["a", "b", "c"]) == "a, b and c"
 
 

@@ -17,8 +17,10 @@ error against a reference, the wall time (median of repeats) and the work counte
 * ``summary.md`` — which solver to pick for which scene and why.
 
 Hand-written models are found through the entry point group ``multipole.hand_models``: each entry
-is a callable ``f(scene) -> HandModel | None``; the first answer that is not ``None`` is used.  The
-kernel knows no element library by name.
+is a callable ``f(scene) -> HandModel | None``; the first answer that is not ``None`` is used.
+Without files, the bench runs the scenes offered through the entry point group
+``multipole.bench_scenes`` (:func:`default_scenes`), so an installed package finds them without a
+source checkout.  The kernel knows no element library or fixture package by name.
 
 Reference of a scene: the ``reference`` mapping of its netlist::
 
@@ -59,7 +61,7 @@ import sympy as sp
 from . import pipeline
 from .errors import MultipoleError
 from .expressions import parse_expression
-from .netlist import Scene, load
+from .netlist import Scene, load, loads
 from .network import flatten
 from .primitives import T
 from .simulate import IMPLICIT, SOLVERS, choose_solver, rk_stability_radius, simulate
@@ -307,15 +309,21 @@ def _time_calls(fn, args, min_time=0.05) -> float:
 def hand_model(scene: Scene):
     """The hand-written model of ``scene``: the first answer that is not ``None`` of the callables
     registered in the entry point group ``multipole.hand_models`` (``None`` if none answers)."""
-    for ep in entry_points(group="multipole.hand_models"):
-        try:
-            factory = ep.load()
-        except ImportError:
-            continue
+    for _, factory in _registered("multipole.hand_models"):
         hand = factory(scene)
         if hand is not None:
             return hand
     return None
+
+
+def _registered(group: str):
+    """``(name, callable)`` of every entry point of ``group`` whose module imports (a fixture package
+    that is not installed is left out, not an error)."""
+    for ep in entry_points(group=group):
+        try:
+            yield ep.name, ep.load()
+        except ImportError:
+            continue
 
 
 class _HandResult:
@@ -449,18 +457,18 @@ class _Bar:
             sys.stderr.write("\n")
 
 
-def default_scenes(root: Path | None = None) -> list[Path]:
-    """Every scene under ``diagrams/`` (recursively, so with the hard cases in ``diagrams/hard/``)
-    tagged ``bench: true`` and well-posed by declaration (no ``expect_check``)."""
-    root = root or Path(__file__).resolve().parents[1] / "diagrams"
+def default_scenes() -> list[Scene]:
+    """The bench's scenes when no files are given, loaded: every scene offered by the callables
+    registered in the entry point group ``multipole.bench_scenes`` (each returns ``(name, yaml_text)``
+    pairs; a scene is labelled ``ENTRY:name`` in messages) that is tagged ``bench: true`` and
+    well-posed by declaration (no ``expect_check``).  Found through the installed package's metadata,
+    so the same with or without a source checkout."""
     out = []
-    for path in sorted(root.rglob("*.yaml")):
-        try:
-            sc = load(path)
-        except MultipoleError:
-            continue
-        if sc.bench and not sc.expect_check:
-            out.append(path)
+    for entry, provider in _registered("multipole.bench_scenes"):
+        for name, text in provider():
+            sc = loads(text, f"{entry}:{name}")
+            if sc.bench and not sc.expect_check:
+                out.append(sc)
     return out
 
 
@@ -643,7 +651,6 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     ``figures_dir`` (default ``out_dir``) receives the work-precision figures ``bench_<scene>.png``.
     """
     from .backends import available
-    paths = [Path(f) for f in files] if files else default_scenes()
     solvers = list(solvers or SWEEP_SOLVERS)
     for s in solvers:
         if s != "auto" and s not in SOLVERS:
@@ -653,7 +660,7 @@ def run_bench(files=None, out_dir="bench_out", quick=False, quiet=False, solvers
     budget = budget or (5e4 if quick else 4e5)
     naive_budget = 2e5 if quick else 2e7
     backends = ["numpy"] + [b for b in available() if b != "numpy"]
-    scenes = [load(p) for p in paths]
+    scenes = [load(f) for f in files] if files else default_scenes()
     per_scene = len(tolerances) * (len(solvers) * len(backends) + len(HAND_SOLVERS))
     bar = _Bar(len(scenes) * per_scene, sys.stderr.isatty() and not quiet)
     reports = []

@@ -4,8 +4,10 @@ by the tests, ``benchmarks/``, the docs and ``multipole bench`` (like PyDy's ``m
 They are not machine elements, so they live outside the element library ``elements/``.
 
 Each builder returns the YAML text of a netlist (load it with :func:`multipole.loads`); the scenes
-in ``diagrams/hard/`` are written from these builders by ``python benchmarks/make_hard_scenes.py``
-and a test keeps them in step.  Where a scene is linear, the builder also derives a closed-form
+in ``diagrams/hard/`` and the bench scenes ``diagrams/drive_train.yaml`` and ``diagrams/rlc_series.yaml``
+(:data:`SCENE_FILES`) are written from these builders by ``python benchmarks/make_hard_scenes.py``
+and a test keeps them in step.  :func:`bench_scenes` offers them to ``multipole bench`` through the
+``multipole.bench_scenes`` entry point, so the bench finds them in an installed package.  Where a scene is linear, the builder also derives a closed-form
 reference from a *hand-written* state matrix (written from the physics here, not taken from the
 generated code) and stores it in the scene's ``reference`` mapping.
 
@@ -31,7 +33,8 @@ import numpy as np
 __all__ = ["HandModel", "HAND_MODELS", "hand_model", "mass_spring_chain", "two_mass_oscillator",
            "stiff_drive_train", "mathieu_oscillator", "stick_slip", "slack_rope", "slider_crank",
            "differentiated_step", "nonlinear_loop", "piezo_stack_step", "slider_crank_position", "HARD_SCENES", "mathieu_boundaries",
-           "stick_slip_exact", "slack_rope_events", "linear_response"]
+           "stick_slip_exact", "slack_rope_events", "linear_response", "drive_train", "rlc_series",
+           "SCENE_FILES", "bench_scenes"]
 
 
 # -------------------------------------------------------------------------------------------------
@@ -858,6 +861,72 @@ def _hard() -> dict:
 
 
 HARD_SCENES = _hard()
+
+
+def drive_train() -> str:
+    """Bench scene ``diagrams/drive_train.yaml``: motor (torque ramp to 10 N·m), ideal gear ``i``,
+    elastic shaft ``c_shaft`` [N·m/rad] with damping, load inertia on a damped bearing."""
+    return """\
+name: drive_train
+description: Motor -> ideal gear -> elastic shaft -> load, with shaft and bearing damping
+parameters: {i: 3.0, c_shaft: 2000.0}
+elements:
+  motor:   {type: torque_source, value: "10*(1 - exp(-t/0.05))"}
+  rotor:   {type: inertia, J: 2.0e-3}
+  gear:    {type: ideal_gear, i: i}
+  shaft:   {type: spring, c: c_shaft}
+  shaft_d: {type: damper, d: 0.5}
+  load:    {type: inertia, J: 0.5}
+  bearing: {type: damper, d: 0.8}
+  housing: {type: ground}
+connections:
+  - [motor.p, rotor.a]
+  - [rotor.b, gear.a]
+  - [gear.b, shaft.a, shaft_d.a]
+  - [shaft.b, shaft_d.b, load.a]
+  - [load.b, bearing.a]
+  - [bearing.b, housing.p]
+outputs: [rotor.omega, load.omega, shaft.force]
+simulate: {t_end: 2.0, dt_out: 0.002, solver: auto, rtol: 1.0e-8}
+reference: {kind: tight, hand_model: drive_train}
+bench: true
+"""
+
+
+def rlc_series() -> str:
+    """Bench scene ``diagrams/rlc_series.yaml``: series RLC circuit (10 Ω, 0.1 H, 100 µF) driven by
+    a ``V`` [V] step."""
+    return """\
+name: rlc_series
+description: Series RLC circuit driven by a 12 V step; capacitor voltage and loop current
+parameters: {V: 12.0}
+elements:
+  supply: {type: voltage_source, value: "V*step(t)"}
+  R1:     {type: resistor, R: 10.0}
+  L1:     {type: inductor, L: 0.1}
+  C1:     {type: capacitor, C: 1.0e-4}
+  gnd:    {type: ground, domain: electrical}
+connections:
+  - [supply.p, R1.a]
+  - [R1.b, L1.a]
+  - [L1.b, C1.a]
+  - [C1.b, supply.n, gnd.p]
+outputs: [C1.v, L1.i]
+simulate: {t_end: 0.1, dt_out: 1.0e-4, rtol: 1.0e-9, atol: 1.0e-12}
+reference: {kind: tight, hand_model: rlc_series}
+bench: true
+"""
+
+
+#: path under diagrams/ -> YAML text of every scene written from this module
+SCENE_FILES: dict = {"drive_train.yaml": drive_train(), "rlc_series.yaml": rlc_series(),
+                     **{f"hard/{name}": text for name, text in HARD_SCENES.items()}}
+
+
+def bench_scenes() -> list:
+    """``(name, yaml_text)`` of the scenes this module offers ``multipole bench`` (registered in the
+    entry point group ``multipole.bench_scenes``; the bench keeps those tagged ``bench: true``)."""
+    return list(SCENE_FILES.items())
 
 #: scene name (or its start) -> factory(parameters of the scene) of a hand-written model
 HAND_MODELS: dict = {

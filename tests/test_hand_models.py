@@ -22,9 +22,9 @@ BENCH = default_scenes()
 ROUND_OFF = 1e-12
 
 
-@pytest.fixture(scope="module", params=BENCH, ids=lambda p: p.stem)
+@pytest.fixture(scope="module", params=BENCH, ids=lambda sc: sc.name)
 def pair(request):
-    scene = load(request.param)
+    scene = request.param
     return scene, pipeline.model(scene), hand_model(scene)
 
 
@@ -45,8 +45,7 @@ def _t_end(scene):
 
 def test_every_bench_scene_has_a_hand_model_with_the_same_states():
     assert len(BENCH) == 9
-    for path in BENCH:
-        scene = load(path)
+    for scene in BENCH:
         model, hand = pipeline.model(scene), hand_model(scene)
         assert hand is not None, scene.name
         assert sorted(hand.state_names) == sorted(model.state_names), scene.name
@@ -88,8 +87,7 @@ def test_hand_outputs_equal_generated_outputs(pair):
 
 def test_reference_output_of_every_bench_scene_is_a_hand_output():
     from multipole.bench import reference_spec
-    for path in BENCH:
-        scene = load(path)
+    for scene in BENCH:
         assert reference_spec(scene)["output"] in hand_model(scene).outputs, scene.name
 
 
@@ -140,7 +138,7 @@ def test_slider_crank_kinematics_against_finite_differences():
 
 def test_hand_run_of_a_linear_scene_matches_its_closed_form():
     """solve_hand (what the bench times) against the modal closed form of the RLC step response."""
-    scene = load(ROOT / "diagrams" / "rlc_series.yaml")
+    scene = loads(S.rlc_series(), "rlc_series.yaml")
     hand = hand_model(scene)
     t = np.linspace(0.0, 0.1, 201)
     res = solve_hand(hand, 0.1, t, "DOP853", 1e-10, 1e-13)
@@ -153,7 +151,7 @@ def test_hand_run_of_a_linear_scene_matches_its_closed_form():
 
 
 def test_hand_run_stops_at_its_evaluation_budget():
-    hand = hand_model(load(ROOT / "diagrams" / "hard" / "mathieu.yaml"))
+    hand = hand_model(loads(S.mathieu_oscillator(), "mathieu.yaml"))
     with pytest.raises(RuntimeError, match="right-hand side calls"):
         solve_hand(hand, 100.0, np.linspace(0, 100.0, 11), "RK45", 1e-10, 1e-12, max_nfev=500)
 
@@ -177,4 +175,5 @@ def test_the_kernel_imports_no_element_library():
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
             assert not any(n == "elements" or n.startswith("elements.") for n in names), path
-    assert "elements" not in (ROOT / "multipole" / "bench.py").read_text(encoding="utf-8")
+    bench = (ROOT / "multipole" / "bench.py").read_text(encoding="utf-8")
+    assert "elements" not in bench and "multipole_models" not in bench   # found through entry points only

@@ -748,3 +748,30 @@ def test_switches_are_held_on_their_side_in_compiled_segments(nb):
     assert res.stats["rejected"] <= res.stats["segments"]
     assert len(res.events) == len(ref.events) and np.allclose([t for t, _ in res.events],
                                                                [t for t, _ in ref.events], atol=1e-9)
+
+
+def test_arithmetic_failure_in_compiled_code_is_one_line_not_ignored(nb, tmp_path, capfd, monkeypatch):
+    """A compiled function cannot raise into the integrator: a division by zero there used to be
+    printed as an ignored exception while the run went on.  With numpy's error model it yields a
+    non-finite value, which the driver refuses in one line (exit 3)."""
+    path = tmp_path / "inv.yaml"
+    path.write_text(textwrap.dedent("""\
+        name: inv
+        elements:
+          src: {type: torque_source, value: "1.0"}
+          J: {type: inertia, J: 1.0}
+          d: {type: damper, law: "1/f"}
+          g: {type: ground}
+        connections:
+          - [src.p, J.a]
+          - [J.b, d.a]
+          - [d.b, g.p]
+        outputs: [J.omega]
+        simulate: {t_end: 1.0, dt_out: 0.25}
+        """), encoding="utf-8")
+    ignored = []
+    monkeypatch.setattr(sys, "unraisablehook", ignored.append)   # where compiled code's exceptions go
+    code = main(["simulate", str(path), "--backend", "numba", "--quiet"])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert code == 3 and not ignored, [str(u.exc_value) for u in ignored]
+    assert len(err) == 1 and err[0].startswith("error[") and "inv.yaml" in err[0], err

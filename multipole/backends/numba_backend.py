@@ -96,7 +96,7 @@ _SIG = "types.void(types.float64, types.voidptr, types.voidptr, types.voidptr)"
 #: damped Newton iteration for one algebraic loop (the rule of :func:`multipole.codegen.newton`),
 #: generated per loop so that it calls the loop's residual function directly; written with loops
 #: and the kernels' LU because numba compiles numpy's array functions slowly
-_NEWTON = '''@njit(cache=True)
+_NEWTON = '''@njit(cache=True, error_model="numpy")
 def _newton{k}(w, a):
     """Damped Newton for the loop {k}, warm-started from w[{off}:{end}], then from zero; NaN if both fail."""
     z = np.empty({n})
@@ -211,7 +211,7 @@ class _Writer(codegen.Writer):
             free = set().union(*(r.free_symbols for r in res)) - set(zs)
             self.deps[k] = deps = sorted(free, key=lambda s: N[s])
             Jz = sp.Matrix(res).jacobian(zs)
-            src = ["@njit(cache=True)", f"def _blk{k}(_z, _a, _F, _J):",
+            src = ["@njit(cache=True, error_model='numpy')", f"def _blk{k}(_z, _a, _F, _J):",
                    f'    """Residuals of the algebraic loop for {", ".join(map(str, zs))} and their Jacobian."""']
             src += [f"    {N[d]} = _a[{i}]" for i, d in enumerate(deps)]
             src += [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
@@ -227,7 +227,7 @@ class _Writer(codegen.Writer):
     def function(self, name, doc, needed, values, shape) -> list:
         """A cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``."""
         units = codegen.closure(self.units, needed)
-        return [f"@cfunc({_SIG}, cache=True)", f"def {name}(t, xp, outp, wp):", f'    """{doc}"""',
+        return [f"@cfunc({_SIG}, cache=True, error_model='numpy')", f"def {name}(t, xp, outp, wp):", f'    """{doc}"""',
                 f"    x = carray(xp, ({len(self.states)},), np.float64)",
                 f"    out = carray(outp, {shape}, np.float64)", "    w = carray(wp, (N_WORK,), np.float64)"] + \
             self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)] + [""]
@@ -252,7 +252,7 @@ class _Writer(codegen.Writer):
         body += ["    _J = out", f"    for _i in range({n}):", f"        for _j in range({n}):",
                  "            _J[_i, _j] = 0.0"]
         body += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
-        return [f"@cfunc({_SIG}, cache=True)", "def jac(t, xp, outp, wp):", '    """Jacobian d(rhs)/dx into out."""',
+        return [f"@cfunc({_SIG}, cache=True, error_model='numpy')", "def jac(t, xp, outp, wp):", '    """Jacobian d(rhs)/dx into out."""',
                 f"    x = carray(xp, ({n},), np.float64)", f"    out = carray(outp, ({n}, {n}), np.float64)",
                 "    w = carray(wp, (N_WORK,), np.float64)"] + body + [""]
 

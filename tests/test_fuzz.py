@@ -24,7 +24,7 @@ fuzz = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(fuzz)
 
 SEED = 1
-CASES = {"check": 200, "simulate": 40, "equations": 40}
+CASES = {"check": 300, "simulate": 60, "equations": 60}
 TIME_CAP = 20.0           # seconds per case; slowest measured: 6.6 s wall (0.9 s CPU) on a loaded machine
 
 

@@ -402,6 +402,9 @@ class _Analyser:
         entries = [sp.sympify(sp.diff(e, v)) if v in fs else sp.Integer(0) for e, fs in zip(exprs, present) for v in wrt]
         pts = self.sample_points(syms)
         values = self.sample_values(entries, pts).reshape(len(pts), len(exprs), len(wrt))
+        bad = ~np.isfinite(values)
+        if bad.any():          # an entry that is not identically zero but overflows or is undefined at a
+            values[bad] = self.rng.uniform(0.5, 1.5, size=int(bad.sum()))   # sample: generic nonzero
         return [(M[:, :len(alg)], M[:, len(alg):]) for M in values]
 
     @staticmethod

@@ -501,7 +501,16 @@ class _Writer:
                 raise ModelError("infinite_value", f"the parameters make {e} infinite"
                                  + (f" ({', '.join(bad)} = 0)" if bad else ""),
                                  "a zero inertia, stiffness or resistance divides; use a node or a rigid coupling instead")
-            text = self.printer.doprint(folded)
+            try:
+                text = self.printer.doprint(folded)
+            except (ValueError, TypeError, NotImplementedError) as exc:   # sympy's printers raise these
+                owners = sorted({v.name.split(".")[0] for v in e.free_symbols if "." in v.name})
+                text = str(e) if len(str(e)) <= 100 else str(e)[:97] + "..."
+                raise ModelError("unsupported_expression", f"no code can be generated for {text}"
+                                 + (f" (element {', '.join(owners)})" if owners else "")
+                                 + f": the code printer has no form for part of it ({str(exc).splitlines()[0][:80]})",
+                                 "simplify the law (e.g. no function of a discontinuous function), or regularise "
+                                 "it (tanh instead of sign)") from None
         self._printed[key] = text
         return text
 

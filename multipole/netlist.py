@@ -332,6 +332,10 @@ class _Builder:
         if not isinstance(prefer, list) or not all(isinstance(s, str) for s in prefer):
             raise self.err("bad_value", "prefer_state must be a list of state names such as crank.p",
                            line=d.lines.get("prefer_state"))
+        reference = d.get("reference") or {}
+        if not isinstance(reference, dict):
+            raise self.err("bad_value", "reference must be a mapping such as {kind: tight, output: load.omega}",
+                           "see 'reference' in docs/netlist.md", d.lines.get("reference"))
         sim = self.simulate(d.get("simulate") or _Map())
         expect = d.get("expect_check")
         if expect not in (None, 0, 1, 2):
@@ -344,7 +348,7 @@ class _Builder:
         digest = hashlib.sha256((text + repr(sorted(self.overrides.items()))).encode()).hexdigest()
         return Scene(str(d.get("name", Path(self.file).stem)), str(d.get("description", "")), self.file, net,
                      outputs, sim, expect, bool(d.get("bench", False)), digest, out_lines, lines, types,
-                     dict(d.get("reference") or {}), texts)
+                     dict(reference), texts)
 
     # -- sections --------------------------------------------------------------------------------
     def parameters(self, raw) -> dict:

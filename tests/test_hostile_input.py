@@ -368,3 +368,57 @@ def test_gear_train_stage_count():
     err = refused(netlist_text(extra=f"g: {{type: gear_train, r1: [{radii}], r2: [{radii}]}}"), "bad_value",
                   EXTRA_LINE, "g")
     assert f"at most {MAX_STAGES}" in err.message
+
+
+# -- 7. classes the fuzz campaign found (docs/testing.md) -----------------------------------------
+
+_TWO_BODIES = """\
+elements:
+  J1: {type: inertia, J: 1.0}
+  d: {type: damper, law: "LAW"}
+  J2: {type: inertia, J: 1.0, omega0: 1.0}
+connections:
+  - [J1.b, d.a]
+  - [d.b, J2.a]
+outputs: [J1.omega]
+simulate: {t_end: 0.1}
+"""
+
+
+def _one_line(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+@pytest.mark.parametrize("law", ["sign(1/f)", "abs(sqrt(log(f)))"])
+def test_law_the_code_printer_cannot_write_is_one_line(tmp_path, capsys, law):
+    path = tmp_path / "law.yaml"
+    path.write_text(_TWO_BODIES.replace("LAW", law), encoding="utf-8")
+    assert main(["simulate", str(path), "--quiet"]) == 2
+    err = _one_line(capsys)
+    assert err.startswith("error[unsupported_expression]") and "element d" in err and str(path) in err
+
+
+def test_reference_that_is_not_a_mapping(tmp_path, capsys):
+    path = tmp_path / "ref.yaml"
+    path.write_text("elements: {J: {type: inertia, J: 1.0}}\nreference: \"x\"\n", encoding="utf-8")
+    assert main(["check", str(path)]) == 2
+    assert _one_line(capsys).startswith(f"error[bad_value] {path}:2")
+
+
+@pytest.mark.parametrize("text", [
+    "elements: {L1: {type: inductor, L: 5.0e-324}}\n",                   # 1/L overflows at every sample
+    "elements:\n  tf: {type: TF, ratio: \"ramp(sqrt(t) - 0.0005)\"}\n  k: {type: spring, c: 10.0}\n"
+    "  J: {type: inertia, J: 1.0}\nconnections:\n  - [tf.b, k.a]\n  - [J.b, tf.a]\n",   # NaN at t < 0
+])
+def test_structural_check_survives_entries_that_do_not_evaluate(tmp_path, capsys, text):
+    """The analyser samples constraint Jacobians numerically; an entry that is not identically zero
+    but overflows or is undefined at a sample is generically nonzero, as its finite twin would be."""
+    path = tmp_path / "s.yaml"
+    path.write_text(text, encoding="utf-8")
+    twin = tmp_path / "twin.yaml"
+    twin.write_text(text.replace("5.0e-324", "1.0e-3").replace("sqrt(t) - 0.0005", "t + 1"), encoding="utf-8")
+    code = main(["check", str(path)])
+    out = capsys.readouterr()
+    assert "Traceback" not in out.err and code == main(["check", str(twin)])

@@ -356,6 +356,31 @@ def test_a_model_the_numba_printer_cannot_translate_runs_on_numpy_visibly(nb, mo
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
 
 
+def test_a_model_above_the_compile_size_limit_runs_on_numpy_visibly(nb, monkeypatch):
+    """numba is not started on a module whose source cost is above the limit (its compile time grows
+    super-linearly): the run falls back with the reason and the limit named; below it, numba runs."""
+    from multipole.errors import MultipoleWarning
+    monkeypatch.setenv("MULTIPOLE_NUMBA_MAX_COST", "1000")
+    with pytest.warns(MultipoleWarning, match=r"ModelTooLarge: .*above the limit of 1,000"):
+        res = pipeline.run(load(RLC), t_end=0.01, progress=False, backend="numba")
+    assert res.stats["backend"].startswith("numpy (fallback: ModelTooLarge: generated source costs ")
+    assert "above the limit of 1,000 (MULTIPOLE_NUMBA_MAX_COST)" in res.stats["backend"]
+    assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
+    monkeypatch.delenv("MULTIPOLE_NUMBA_MAX_COST")
+    assert run_numba(RLC, t_end=0.01).stats["backend"] == "numba"
+
+
+def test_a_100_state_chain_is_below_the_compile_size_limit(nb):
+    """The target of a 100-state model on numba: the 50-pair mass-spring chain's generated source is
+    under the default limit, the 150-pair chain's (61 s of numba compilation measured) above it."""
+    import multipole_models
+    cost = {}
+    for n in (50, 150):
+        sc = scene(multipole_models.mass_spring_chain(n))
+        cost[n] = nb.source_cost(nb.translate(pipeline.equations(sc), sc.outputs)[0])
+    assert cost[50] <= nb.MAX_SOURCE_COST < cost[150], cost
+
+
 def test_the_cli_shows_a_fallback_as_one_warning_line(nb, monkeypatch, capsys):
     _numba_cannot_compile(nb, monkeypatch)
     assert main(["simulate", str(RLC), "--backend", "numba", "--quiet", "--t-end", "0.01"]) == 0

@@ -36,12 +36,14 @@ Solvers: ``RK45`` (Dormand–Prince 5(4), explicit), ``Radau`` (Radau IIA order 
 Jacobian) and ``auto`` (the stiffness test of :func:`multipole.simulate.choose_solver`).  ``DOP853``
 and ``RK23`` run as ``RK45``, ``BDF`` and ``LSODA`` as ``Radau``; ``Result.solver_reason`` says so.
 Models numba cannot compile run on the ``numpy`` backend, visibly: a ``MultipoleWarning`` names the
-reason, and so do ``stats["backend"]`` (``numpy (fallback: reason)``) and ``solver_reason``.
+reason, and so do ``stats["backend"]`` (``numpy (fallback: reason)``) and ``solver_reason``; so do
+models whose generated source costs more than :data:`MAX_SOURCE_COST` (numba would compile them for minutes).
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import re
 import sys
 import time
 import types
@@ -297,6 +299,43 @@ def generate(eq, outputs) -> tuple[str, list]:
             "from multipole.backends import numba_kernels as _k", "", f"N_WORK = {w.work}",
             f"N_SWITCHES = {len(sw)}"] + codegen.time_switch_lines(w, sw) + [""]
     return "\n".join(head + w.blocks_src + body) + "\n", [str(s) for s in sw]
+
+
+#: the largest generated module numba is asked to compile, in :func:`source_cost` units (bytes, an
+#: array subscript counted as 100): numba's compile time grows faster than this cost (slope about
+#: 1.8 on the mass-spring chain: 8 s at 50 pairs, cost 87,500; 61 s at 150 pairs, cost 264,000; see
+#: docs/backends.md), so a larger model runs on the numpy backend, visibly.  The environment
+#: variable ``MULTIPOLE_NUMBA_MAX_COST`` sets another limit.
+MAX_SOURCE_COST = 150_000
+#: an array subscript (``_A[3, 4] = ...``, ``x[2]``) costs numba/LLVM about as much as 100 bytes of
+#: scalar code
+SUBSCRIPT_COST = 100
+_SUBSCRIPT = re.compile(r"[A-Za-z_]\w*\[")
+
+
+class ModelTooLarge(RuntimeError):
+    """The generated source costs more than :func:`max_source_cost`: the backend does not start numba."""
+
+
+def source_cost(source: str) -> int:
+    """Predictor of numba's compile time for a generated module: its size in bytes plus
+    :data:`SUBSCRIPT_COST` per array subscript (measured: a dense linear-loop matrix of 2,000 element
+    stores in 71 kB compiles slower than a chain's 114 kB of scalar code)."""
+    return len(source.encode()) + SUBSCRIPT_COST * len(_SUBSCRIPT.findall(source))
+
+
+def max_source_cost() -> int:
+    """The limit on :func:`source_cost`: ``MULTIPOLE_NUMBA_MAX_COST`` or :data:`MAX_SOURCE_COST`."""
+    text = os.environ.get("MULTIPOLE_NUMBA_MAX_COST", "").strip()
+    return int(text) if text.isdigit() else MAX_SOURCE_COST
+
+
+def check_size(source: str) -> None:
+    """Raise :class:`ModelTooLarge` (the caller falls back to numpy) if ``source`` is above the limit."""
+    cost, limit = source_cost(source), max_source_cost()
+    if cost > limit:
+        raise ModelTooLarge(f"generated source costs {cost:,} (bytes + {SUBSCRIPT_COST} per subscript), above "
+                            f"the limit of {limit:,} (MULTIPOLE_NUMBA_MAX_COST)")
 
 
 _SOURCES: dict = {}
@@ -559,6 +598,7 @@ class NumbaBackend(Backend):
         start = time.perf_counter()
         source, switch_text = translate(equations, outputs)
         translate_time = time.perf_counter() - start
+        check_size(source)
         module = load(source)
         cached = _compile(module, len(equations.states), len(switch_text))
         model = NumbaModel(equations, outputs, module, switch_text, _initial_state(equations), translate_time,

@@ -311,6 +311,7 @@ class _Parser:
             else:
                 self.check_power(value, right, op_node)
                 value = value ** right
+            value = self.in_range(value, op_node)
         return value
 
     def check_power(self, base: sympy.Expr, exponent: sympy.Expr, node: ast.AST) -> None:
@@ -342,7 +343,23 @@ class _Parser:
                              f"{self.segment(node)}", "see the function list in the documentation")
         if name == "interp":
             return self.interp(node, depth)
-        return constructor(*(self.walk(arg, depth + 1) for arg in node.args))
+        return self.in_range(constructor(*(self.walk(arg, depth + 1) for arg in node.args)), node)
+
+    def in_range(self, value: sympy.Expr, node: ast.AST) -> sympy.Expr:
+        """Refuse a constant beyond the floating-point range as soon as it appears: sympy's numbers
+        have no such limit, and a function of one (sin(exp(1e10))) takes sympy practically forever."""
+        if not value.is_number:
+            return value
+        try:
+            number = float(value)
+        except OverflowError:
+            number = math.inf
+        except (TypeError, ValueError):   # complex or undefined: refused in their own words later
+            return value
+        if math.isinf(number) and not value.has(sympy.oo, sympy.zoo):
+            raise self.error("bad_expression", f"the constant {self.segment(node)} is beyond the range of "
+                             "floating-point numbers (about 1.8e308)", "check the exponent and the units")
+        return value
 
     def interp(self, node: ast.Call, depth: int) -> sympy.Expr:
         x_node, xs_node, ys_node = node.args

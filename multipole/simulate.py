@@ -464,6 +464,11 @@ class Run:
 def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, x0) -> Result:
     """What every backend shares around its integrator (see :func:`simulate`)."""
     start = time.perf_counter()
+    x = np.array(model.x0 if x0 is None else x0, dtype=float)
+    if not np.all(np.isfinite(x)):
+        bad = [model.state_names[k] for k in np.nonzero(~np.isfinite(x))[0]]
+        raise SimulationError("not_finite", f"the initial state is infinite or NaN: {', '.join(bad[:5])}",
+                              "check the initial values and the parameters they are computed from")
     key = (integrator.name, solver, t_end, rtol)
     estimate, plan = model._plans[key]
     if plan is None:                       # the choice, once per model and run setting
@@ -471,7 +476,6 @@ def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, 
         plan = integrator.method(solver, auto)
         model._plans[key] = estimate, plan
     method, reason = plan
-    x = np.array(model.x0 if x0 is None else x0, dtype=float)
     schedule, sides = _time_switches(model, x, t_end)
     run = integrator.integrate(model, method, t_grid, x, schedule, sides, t_end, rtol, atol, max_step, bar)
     bar.close()

@@ -422,3 +422,12 @@ def test_structural_check_survives_entries_that_do_not_evaluate(tmp_path, capsys
     code = main(["check", str(path)])
     out = capsys.readouterr()
     assert "Traceback" not in out.err and code == main(["check", str(twin)])
+
+
+@pytest.mark.parametrize("law", ["sin(exp(2988.190461**3))", "cos(1e308*10)", "exp(1000.0)", "exp(1000)*f"])
+def test_constant_beyond_float_range_is_refused_at_once(law):
+    """sympy's numbers have no range limit; sin of exp(2.7e10) took it practically forever (a hang in
+    the fuzz campaign, seed 2027 case 5636)."""
+    text = netlist_text(extra=f'g: {{type: damper, law: "{law}"}}')
+    err = refused(text, "bad_expression", EXTRA_LINE, "g")
+    assert "beyond the range" in err.message

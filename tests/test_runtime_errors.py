@@ -384,3 +384,16 @@ def test_ctrl_c_during_simulate_is_one_line_exit_130_and_no_file(tmp_path):
     assert len(lines) == 1 and "interrupted at t = " in lines[0] and "discarded" in lines[0], lines
     assert "Traceback" not in stderr
     assert not out.exists() and [p.name for p in tmp_path.iterdir() if p.suffix != ".yaml"] == ["cache"]
+
+
+def test_an_infinite_initial_state_is_one_error_before_any_step():
+    """The driver refuses a non-finite start (scipy's solvers raised a bare ValueError)."""
+    import numpy as np
+    from multipole import loads, pipeline
+    from multipole.simulate import simulate
+    scene = loads("elements:\n  J: {type: inertia, J: 1.0}\n  T: {type: torque_source, value: '1.0'}\n"
+                  "connections:\n  - [T.p, J.a]\n", "inf.yaml")
+    model = pipeline.model(scene)
+    with pytest.raises(RunError) as exc:
+        simulate(model, 1.0, x0=np.array([np.inf]), progress=False)
+    assert exc.value.code == "not_finite" and "J.p" in exc.value.message

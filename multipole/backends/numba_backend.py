@@ -192,9 +192,11 @@ class _Writer(codegen.Writer):
         zs = u.variables
         n = len(zs)
         if u.kind == "linear":
-            lines = [f"    _A = np.empty(({n}, {n}))", f"    _b = np.empty({n})",
+            lines = [f"    _A = np.zeros(({n}, {n}))", f"    _b = np.empty({n})",
                      f"    _piv = np.empty({n}, dtype=np.int64)"]
-            lines += [f"    _A[{i}, {j}] = {P(b.matrix[i, j])}" for i in range(n) for j in range(n)]
+            # only the nonzero entries: each element store costs numba as much as 100 bytes of code
+            entries = ((i, j, P(b.matrix[i, j])) for i in range(n) for j in range(n))
+            lines += [f"    _A[{i}, {j}] = {code}" for i, j, code in entries if code not in ("0.0", "-0.0")]
             lines += [f"    _b[{i}] = {P(b.rhs[i])}" for i in range(n)]
             lines += ["    _k.lu_factor(_A, _piv)", "    _k.lu_solve(_A, _piv, _b)"]
             return lines + [f"    {N[z]} = _b[{i}]" for i, z in enumerate(zs)]

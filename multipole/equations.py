@@ -113,7 +113,9 @@ class Equations:
             if hit:
                 expr = expr.xreplace(hit)
         expr = sp.expand(expr) if sp.count_ops(expr) < max_ops else expr
-        return sp.simplify(expr) if sp.count_ops(expr) < max_ops // 4 else expr
+        if sp.count_ops(expr) >= max_ops // 4 or expr.atoms(sp.Function):
+            return expr      # sympy's simplify of functions of the unknowns (tanh(73 + f) - pi/f) can run for
+        return sp.simplify(expr)   # minutes (a fuzzed netlist); it only tidies the printed text
 
     # -- printing ---------------------------------------------------------------------------------
     def to_text(self, outputs=(), steps: bool = False) -> str:

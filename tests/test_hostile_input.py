@@ -431,3 +431,19 @@ def test_constant_beyond_float_range_is_refused_at_once(law):
     text = netlist_text(extra=f'g: {{type: damper, law: "{law}"}}')
     err = refused(text, "bad_expression", EXTRA_LINE, "g")
     assert "beyond the range" in err.message
+
+
+def test_equation_text_does_not_simplify_functions_of_the_unknowns(tmp_path, capsys, monkeypatch):
+    """sympy's simplify of tanh(73 + f) - pi/f ran for minutes (fuzz campaign, seed 2028, equations
+    case 150); the printed equations only simplify rational expressions."""
+    import multipole.equations as equations
+
+    def refuse(expr, *args, **kwargs):
+        if expr.atoms(equations.sp.Function):
+            raise AssertionError(f"simplify called on {expr}")
+        return expr
+    monkeypatch.setattr(equations.sp, "simplify", refuse)
+    path = tmp_path / "law.yaml"
+    path.write_text(_TWO_BODIES.replace("LAW", "tanh(73.24 + f) - (pi + pi/f)"), encoding="utf-8")
+    assert main(["equations", str(path)]) == 0
+    assert "tanh" in capsys.readouterr().out

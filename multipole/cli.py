@@ -16,7 +16,7 @@ from pathlib import Path
 
 from . import pipeline
 from .catalogue import catalogue
-from .errors import IllPosedError, MultipoleError, MultipoleWarning, RunError
+from .errors import IllPosedError, LongRunWarning, MultipoleError, MultipoleWarning, RunError
 from .netlist import load, validate_simulate_options
 
 #: exit status after Ctrl-C (128 + SIGINT, as shells report it)
@@ -200,19 +200,30 @@ def _version() -> str:
         return __version__
 
 
-#: warnings of the libraries (numpy, scipy, sympy, ...) held back until the command has succeeded,
-#: so that none of them comes before an error line
+#: warnings held back so that none comes before an error line: the project's own (the check's
+#: warnings that simulate repeats) are printed when the command ends, after the error line if it
+#: failed; the libraries' (numpy, scipy, sympy, ...) only after a success
+_HELD: list = []
 _DEFERRED: list = []
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """The project's warnings as one line on stderr at once; the libraries' warnings held back."""
-    if issubclass(category, MultipoleWarning):
+    """Collect a warning as one line (see :data:`_HELD` and :data:`_DEFERRED`)."""
+    if issubclass(category, LongRunWarning):     # announces a wait: now, not afterwards
         print(f"multipole: warning: {message}", file=sys.stderr)
+        return
+    if issubclass(category, MultipoleWarning):
+        text, into = f"multipole: warning: {message}", _HELD
     else:
         text = f"multipole: warning: {category.__name__}: {str(message).splitlines()[0] if str(message) else ''}"
-        if text not in _DEFERRED:
-            _DEFERRED.append(text)
+        into = _DEFERRED
+    if text not in into:
+        into.append(text)
+
+
+def _print_held(texts) -> None:
+    for text in texts:
+        print(text, file=sys.stderr)
 
 
 def main(argv=None) -> int:
@@ -268,11 +279,11 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     shown = warnings.showwarning
     warnings.showwarning = _show_warning
+    _HELD.clear()
     _DEFERRED.clear()
     try:
         code = args.func(args)
-        for text in _DEFERRED:               # after a success (or the check's findings) only
-            print(text, file=sys.stderr)
+        _print_held(_HELD + _DEFERRED)       # the libraries' after a success (or the check's findings) only
         return code
     except BrokenPipeError:              # output piped into `head` and the like: stop quietly
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -297,6 +308,7 @@ def main(argv=None) -> int:
                               "error": {"code": exc.code, "message": exc.message, "where": exc.where,
                                         "fix": exc.fix}}, indent=2))
         print(str(exc), file=sys.stderr)
+        _print_held(_HELD)                   # context for the error, never before it
         return exc.exit_code
     finally:
         warnings.showwarning = shown

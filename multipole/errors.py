@@ -75,3 +75,8 @@ class Interrupted(KeyboardInterrupt):
 class MultipoleWarning(UserWarning):
     """Something the user should know before (or after) a run that still goes ahead; the CLI
     prints it as one ``multipole: warning:`` line on stderr."""
+
+
+class LongRunWarning(MultipoleWarning):
+    """A run that will take very long: the CLI prints it at once, before the wait it announces
+    (other project warnings are printed when the command ends, never before its error line)."""

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
-from .errors import Interrupted, MultipoleError, MultipoleWarning, NewtonError, RunError
+from .errors import Interrupted, LongRunWarning, MultipoleError, MultipoleWarning, NewtonError, RunError
 from .files import atomic_output
 from .solvers import SOLVERS
 IMPLICIT = {"Radau", "BDF", "LSODA", "GL4"}
@@ -405,7 +405,7 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     loop, a step the integrator cannot take, a state or output that becomes infinite or NaN.
     Warnings of numpy and scipy during the run are collected in ``Result.stats["warnings"]``
     instead of being printed; a run the stiffness estimate says takes more than
-    :data:`MANY_STEPS` steps is announced with a :class:`~multipole.errors.MultipoleWarning`.
+    :data:`MANY_STEPS` steps is announced with a :class:`~multipole.errors.LongRunWarning`.
     Ctrl-C raises :class:`~multipole.errors.Interrupted` with the time reached.
     """
     integrator = integrator or SCIPY
@@ -422,7 +422,7 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     if estimate is not None and estimate[0] > MANY_STEPS:
         warnings.warn(f"{model.name}: the stiffness estimate says this run takes about {estimate[0]:.2g} steps "
                       f"({estimate[1]}); it may run for hours (shorten t_end, or soften the stiffest coupling)",
-                      MultipoleWarning, stacklevel=2)
+                      LongRunWarning, stacklevel=2)
     if progress is None:
         progress = sys.stderr.isatty()
     bar = _Progress(t_end, progress)

@@ -397,3 +397,26 @@ def test_an_infinite_initial_state_is_one_error_before_any_step():
     with pytest.raises(RunError) as exc:
         simulate(model, 1.0, x0=np.array([np.inf]), progress=False)
     assert exc.value.code == "not_finite" and "J.p" in exc.value.message
+
+
+def test_a_check_warning_never_comes_before_the_error_line(tmp_path, capsys):
+    """simulate repeats the check's warnings; when the run then fails, the error line is first and the
+    warning follows as context (fuzz campaign, seed 2029, simulate case 496)."""
+    path = tmp_path / "w.yaml"
+    path.write_text(textwrap.dedent("""\
+        elements:
+          e0: {type: I, J: 102.8792918, domain: electrical}
+          e1: {type: TF, ratio: "0.14762049014990505*sqrt(q*t)"}
+          e2: {type: spur_stage, r1: 102.8792918, r2: 1345.131717, z1: 0.03174, level: elastic,
+               c: "1e5*(1 + 0.2*cos(q))", d: 0.3030148}
+          e3: {type: Sf, value: t}
+        connections:
+          - [e2.b, e3.p]
+          - [e1.b, e2.a]
+        outputs: [e0.p, e1.q]
+        simulate: {t_end: 0.001}
+        """), encoding="utf-8")
+    code = main(["simulate", str(path), "--quiet"])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert code == 3 and err[0].startswith("error["), err
+    assert any(ln.startswith("multipole: warning: [") for ln in err[1:]), err

@@ -646,7 +646,7 @@ def _tear(res, zs, owners, notes, values):
                 split = linear_coefficient(r, z)
                 if split is None or split[0].free_symbols & set(zs):
                     continue
-                a = sp.sympify(split[0]).xreplace(values)
+                a = sp.sympify(sp.sympify(split[0]).xreplace(values))   # a bare parameter maps to a float
                 if a.is_number and a != 0:
                     pick = i, z, -split[1] / split[0]
                     break

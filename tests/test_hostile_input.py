@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -447,3 +448,24 @@ def test_equation_text_does_not_simplify_functions_of_the_unknowns(tmp_path, cap
     path.write_text(_TWO_BODIES.replace("LAW", "tanh(73.24 + f) - (pi + pi/f)"), encoding="utf-8")
     assert main(["equations", str(path)]) == 0
     assert "tanh" in capsys.readouterr().out
+
+
+def test_nonlinear_loop_whose_coefficient_is_a_bare_parameter(tmp_path, capsys):
+    """Tearing a loop substituted parameter values into a coefficient that was one parameter alone,
+    which gave a Python float instead of a sympy number (AttributeError; fuzz seed 2030 case 284)."""
+    path = tmp_path / "tear.yaml"
+    path.write_text(textwrap.dedent("""\
+        elements:
+          e0: {type: MTF, matrix: [[3908.6448781946165, 5993.3308793]], domains_a: [electrical],
+               domains_b: [translational, electrical]}
+          e1: {type: piezo_element, k_P: 0.024357177009724257, delta_P: 177.27106, C_P: 57}
+          e2: {type: GY, r: -31.1427, domain_a: translational, domain_b: translational}
+          e3: {type: damper, law: "sin(sign(f))**2", domain: translational}
+        connections:
+          - [e0.b2, e1.elec_b]
+          - [e2.a, e3.a]
+          - [e1.mech_a, e0.b1]
+          - [e3.b, e2.b]
+        """), encoding="utf-8")
+    assert main(["check", str(path)]) == 0
+    assert "Traceback" not in capsys.readouterr().err

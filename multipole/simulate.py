@@ -311,14 +311,14 @@ def stiffness(model, t_end: float, rtol: float, exact_states: int = EXACT_EIGEN_
     return Stiffness(lam, how, lam_max, ratio, explicit, steps_accuracy, t_end / h_stab, t_end)
 
 
-def choose_solver(model, t_end: float, rtol: float) -> tuple[str, str]:
-    """``auto``: Radau when the model is stiff for the explicit candidate (:class:`Stiffness`), else
-    DOP853 (``rtol <= 1e-6``) or RK45; the reason names the figures and which estimate ran."""
+def choose_solver(model, t_end: float, rtol: float, stiff: Stiffness | None = None) -> tuple[str, str]:
+    """``auto``: Radau when the model is stiff for the explicit candidate (:class:`Stiffness`; the
+    one given, else it is estimated), else DOP853 (``rtol <= 1e-6``) or RK45; the reason names the
+    figures and which estimate ran."""
     if len(model.x0) == 0:
         return "RK45", "no states"
-    try:
-        s = stiffness(model, t_end, rtol)
-    except (ArithmeticError, np.linalg.LinAlgError, ValueError):
+    s = stiff or _stiffness_or_none(model, t_end, rtol)
+    if s is None:
         return "Radau", "Jacobian not available at t=0; implicit to be safe"
     figures = (f"|lambda|max*t_end = {s.lam_max * t_end:.3g}, stiffness ratio {s.ratio:.3g}, "
                f"{s.explicit} steps for stability {s.steps_stability:.3g} / for accuracy {s.steps_accuracy:.3g}; "
@@ -362,26 +362,34 @@ def output_grid(t_end: float, dt_out: float | None, n_columns: int = 1) -> np.nd
     return grid
 
 
-def expected_steps(model, solver: str, t_end: float) -> tuple[float, str] | None:
-    """A rough lower bound of the integration steps from the Jacobian's eigenvalues at the start:
-    ``(steps, why)``, or None where it is not known (no states, more than 400, no Jacobian).
+def expected_steps(model, solver: str, t_end: float,
+                   stiff: Stiffness | None = None) -> tuple[float, str] | None:
+    """A rough lower bound of the integration steps from the Jacobian's eigenvalues at the start
+    (``stiff``, else :func:`stiffness` is asked): ``(steps, why)``, or None where they are not known
+    (no states, no Jacobian).
 
     An explicit method needs about ``|λ|max·t_end/4`` steps (its stability limit); any method
     needs about five steps per period of the fastest oscillation, ``0.8·max|Im λ|·t_end``."""
-    n = len(model.x0)
-    if n == 0 or n > 400:
+    if stiff is None:
+        stiff = _stiffness_or_none(model, t_end, 1e-6)
+    if stiff is None:
         return None
-    try:
-        with np.errstate(all="ignore"):
-            lam = np.linalg.eigvals(model.jac(0.0, model.x0))
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError):
-        return None
-    if not np.all(np.isfinite(lam)):
-        return None
+    lam = stiff.eigenvalues
     explicit = solver not in IMPLICIT and solver != "auto"
     rate = float(np.abs(lam).max(initial=0.0)) / 4 if explicit else 0.8 * float(np.abs(lam.imag).max(initial=0.0))
     what = "|lambda|max/4" if explicit else "0.8*max|Im lambda|"
     return rate * t_end, f"{what} = {rate:.3g} 1/s over t_end = {t_end:g} s"
+
+
+def _stiffness_or_none(model, t_end: float, rtol: float) -> Stiffness | None:
+    """:func:`stiffness`, or None for a model without states or without a Jacobian at the start."""
+    if len(model.x0) == 0:
+        return None
+    try:
+        with np.errstate(all="ignore"):
+            return stiffness(model, t_end, rtol)
+    except (ArithmeticError, np.linalg.LinAlgError, ValueError):
+        return None
 
 
 def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "auto", rtol: float = 1e-6,
@@ -414,11 +422,11 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     if solver != "auto" and solver not in integrator.solvers:
         raise MultipoleError("unknown_solver", f"unknown solver {solver!r}",
                              f"use auto or one of {', '.join(integrator.solvers)}")
-    plans = model.__dict__.setdefault("_plans", {})      # per model: the estimate and the choice
+    plans = model.__dict__.setdefault("_plans", {})      # per model: the stiffness estimate and the choice
     key = (integrator.name, solver, t_end, rtol)
     if key not in plans:
-        plans[key] = expected_steps(model, solver, t_end), None
-    estimate = plans[key][0]
+        plans[key] = _stiffness_or_none(model, t_end, rtol), None
+    estimate = expected_steps(model, solver, t_end, plans[key][0]) if plans[key][0] else None
     if estimate is not None and estimate[0] > MANY_STEPS:
         warnings.warn(f"{model.name}: the stiffness estimate says this run takes about {estimate[0]:.2g} steps "
                       f"({estimate[1]}); it may run for hours (shorten t_end, or soften the stiffest coupling)",
@@ -470,11 +478,11 @@ def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, 
         raise SimulationError("not_finite", f"the initial state is infinite or NaN: {', '.join(bad[:5])}",
                               "check the initial values and the parameters they are computed from")
     key = (integrator.name, solver, t_end, rtol)
-    estimate, plan = model._plans[key]
+    stiff, plan = model._plans[key]
     if plan is None:                       # the choice, once per model and run setting
-        auto = choose_solver(model, t_end, rtol) if solver == "auto" else None
+        auto = choose_solver(model, t_end, rtol, stiff) if solver == "auto" else None
         plan = integrator.method(solver, auto)
-        model._plans[key] = estimate, plan
+        model._plans[key] = stiff, plan
     method, reason = plan
     schedule, sides = _time_switches(model, x, t_end)
     run = integrator.integrate(model, method, t_grid, x, schedule, sides, t_end, rtol, atol, max_step, bar)

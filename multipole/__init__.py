@@ -10,10 +10,10 @@ The public API below is what element libraries and scripts build on.
 from .catalogue import REQUIRED, ElementType, Param, catalogue, element, register
 from .causality import Analysis, analyse
 from .diagnostics import CATALOGUE as DIAGNOSTICS, Diagnostic
-from .domains import DOMAINS, Domain
+from .domains import BUNDLES, DOMAINS, Bundle, Domain
 from .equations import Equations, assemble
 from .errors import IllPosedError, ModelError, MultipoleError, NetlistError, RunError
-from .network import FlatNetwork, Network, Quantity, flatten
+from .network import Closure, FlatNetwork, Network, Quantity, flatten
 from .primitives import T, LAW_F, LAW_P, LAW_Q
 from .primitives import C, CField, GY, I, MTF, R, TF, Primitive, Se, Sf, Tap, junction_a, junction_b
 
@@ -26,7 +26,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "REQUIRED", "ElementType", "Param", "catalogue", "element", "register", "Analysis", "analyse", "DIAGNOSTICS",
-    "Diagnostic", "DOMAINS", "Domain", "Equations", "assemble", "IllPosedError", "ModelError",
+    "Diagnostic", "BUNDLES", "Bundle", "DOMAINS", "Domain", "Closure", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "RunError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
     "GY", "I", "MTF", "R", "TF", "Primitive", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
     "LAW_Q", "Model", "compile_model", "Result", "simulate", "Scene", "load", "loads", "pipeline",

@@ -511,7 +511,9 @@ def unconnected_port(ctx: Context):
         if port:
             yield Diagnostic(
                 "unconnected_port",
-                f"{port} is not connected: {'free end (effort 0)' if node.domain.free_variable == 'e' else 'open (flow 0)'}",
+                f"{port} is not connected: " + ("held: fixed to the frame (flow 0)" if node.held else
+                                                "free end (effort 0)" if node.domain.free_variable == "e" else
+                                                "open (flow 0)"),
                 elements=[port.split('.')[0]], ports=[port])
 
 

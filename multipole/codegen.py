@@ -2,7 +2,9 @@
 
 One flat Python function each for the right-hand side ``f(t, x)``, its Jacobian (forward-mode
 differentiation through the evaluation order, so it stays sparse for long chains), the outputs and
-the switching functions.  Parameters are inlined as numbers; intermediate variables are plain
+the switching functions.  Parameters are inlined as numbers, except the ``runtime`` parameters a
+study names (:func:`compile_model`): those are read from the list ``_P`` in the generated module
+and set per run with :meth:`Model.set_parameters` (no new code).  Intermediate variables are plain
 Python floats; sympy is not on the hot path.  Algebraic loops that are not solved symbolically
 become a numeric linear solve or a Newton iteration (warm-started, iterations counted).
 """
@@ -268,8 +270,8 @@ def time_switches(writer, sw) -> tuple[list, list, list]:
         units = _closure(writer.units, g.free_symbols)
         syms = set(g.free_symbols).union(*(u.deps for u in units))
         syms |= set().union(*(inputs[u].free_symbols for u in syms if u in inputs))
-        if syms & states or any(u.kind != "assign" for u in units):
-            time_only.append(False)
+        if syms & states or syms & set(writer.runtime) or any(u.kind != "assign" for u in units):
+            time_only.append(False)     # (a runtime parameter: its crossings move from run to run)
             rate.append(0.0)
             roots.append(None)
             continue
@@ -364,6 +366,26 @@ class Model:
         self.switch_roots = list(namespace.get("SWITCH_ROOTS", [None] * self.n_switches))
         self.values = namespace["values"]
         self.value_names = namespace["VALUE_NAMES"]
+        self._namespace = namespace
+        #: names of the parameters read at run time from ``_P`` (see :meth:`set_parameters`)
+        self.runtime = list(meta.get("runtime", []))
+
+    def set_parameters(self, values) -> None:
+        """Give the runtime parameters (``self.runtime``, in SI units) new values for the next run:
+        the initial state is recomputed, and the per-run memory (Newton warm starts, the stiffness
+        estimate and the time-switch schedule the driver keeps on the model) is cleared, so a run
+        depends only on its parameter vector, not on the runs before it."""
+        values = [float(v) for v in values]
+        if len(values) != len(self.runtime):
+            raise ModelError("bad_parameters", f"{len(values)} values for {len(self.runtime)} runtime parameters",
+                             f"give one value each for {', '.join(self.runtime)}")
+        ns = self._namespace
+        ns["_P"][:] = values
+        for guess in ns["_guess"]:
+            guess[:] = [0.0] * len(guess)
+        self.x0 = np.array(ns["initial"](), dtype=float)
+        self.__dict__.pop("_plans", None)
+        self.__dict__.pop("_schedules", None)
 
     def port_values(self, t: float, x) -> dict:
         """Value of every port variable ``path.port.e`` / ``.f`` (and states, inputs) at (t, x)."""
@@ -400,7 +422,7 @@ def _units(eq: Equations) -> list:
             units += [_Unit("assign", [v], [s], k) for v, s in zip(b.variables, b.solution)]
         else:
             extra = list(b.matrix) + list(b.rhs) if b.matrix is not None else []
-            units.append(_Unit(b.kind, list(b.variables), list(b.residuals) + extra, k))
+            units.append(_Unit(b.kind, list(b.variables), list(b.residuals) + extra + list(b.start or ()), k))
     return units
 
 
@@ -451,12 +473,15 @@ class JacobianPlan:
 class _Writer:
     """Prints the pieces of the generated module."""
 
-    def __init__(self, eq: Equations):
+    def __init__(self, eq: Equations, runtime=()):
         self.eq = eq
         self.states = [s.symbol for s in eq.states]
         self.index = {s: i for i, s in enumerate(self.states)}
-        self.pvals = {p: sp.Float(v) for p, v in eq.params.items()}
+        #: parameter symbols read from ``_P[k]`` at run time instead of being inlined
+        self.runtime = list(runtime)
+        self.pvals = {p: sp.Float(v) for p, v in eq.params.items() if p not in self.runtime}
         names: dict = {T: "t"}
+        names.update({p: f"_P[{k}]" for k, p in enumerate(self.runtime)})
         taken = {"t"}
         for i, s in enumerate(self.states):
             names[s] = f"x{i}"
@@ -472,7 +497,7 @@ class _Writer:
         self._printed: dict = {}
         self._lines: dict = {}
         self._folded: dict = {}
-        self.values = {p: float(v) for p, v in eq.params.items()}
+        self.values = {p: float(v) for p, v in eq.params.items() if p not in self.runtime}
 
     def locked(self, modes: dict | None):
         """Print in fixed switching modes (``modes``: switching function → index) or, with None, as
@@ -562,6 +587,12 @@ class _Writer:
                                                         f"{lhs} np.linalg.solve(_A, _b).tolist()"]
         Jz = _jacobian(b.residuals, zs)
         k = u.block
+        seed = [f"    _guess[{k}] = [{', '.join(N[v] for v in b.start)}]"] if b.start else []
+        return seed + self._newton_lines(b, zs, Jz, k, lhs)
+
+    def _newton_lines(self, b, zs, Jz, k, lhs) -> list:
+        N, P = self.names, self.P
+        n = len(zs)
         if n == 1:
             return [f"    def _blk{k}({N[zs[0]]}):", f"        return ({P(b.residuals[0])}, {P(Jz[0, 0])})",
                     f"    {N[zs[0]]} = newton(_blk{k}, _guess, {k}, _stats, scalar=True)"]
@@ -886,13 +917,15 @@ CSE_MIN_OPS = 40
 AFFINE_MIN_STATES = 40
 
 
-def generate(eq: Equations, outputs=()) -> str:
+def generate(eq: Equations, outputs=(), runtime=()) -> str:
     """Python source of the model functions for ``eq``.
 
     ``rhs`` is flat scalar code; for an affine model with at least :data:`AFFINE_MIN_STATES`
     states it is a sparse product ``M @ [x, u(t), 1]`` instead (same values, less time per call).
+    ``runtime``: parameter symbols of ``eq.params`` read from the list ``_P`` (their current values
+    to start with) instead of being inlined; ``initial()`` then returns the initial state.
     """
-    w = _Writer(eq)
+    w = _Writer(eq, runtime)
     N, P = w.names, w.P
 
     def ders():
@@ -900,7 +933,11 @@ def generate(eq: Equations, outputs=()) -> str:
     src = ["import math", "import numpy as np", "",
            "_stats = {'rhs_calls': 0, 'jac_calls': 0, 'newton_iterations': 0, 'newton_solves': 0}",
            f"_guess = {[[0.0] * len(b.variables) for b in eq.blocks]!r}", ""]
-    affine = w.affine_rows() if len(w.states) >= AFFINE_MIN_STATES else None
+    if w.runtime:
+        src += [f"_P = {[float(eq.params[p]) for p in w.runtime]!r}", "", "def initial():",
+                '    """The initial state for the runtime parameters in _P."""',
+                f"    return [{', '.join(P(s.initial) for s in eq.states)}]", ""]
+    affine = w.affine_rows() if len(w.states) >= AFFINE_MIN_STATES and not w.runtime else None
     if affine is not None:
         src.insert(2, "from scipy.sparse import csr_array")
         src += w.affine_rhs(affine)
@@ -935,13 +972,18 @@ _CACHE: dict = {}
 
 
 @bulk
-def compile_model(eq: Equations, outputs=()) -> Model:
-    """Generate, compile (cached by source hash) and wrap the model functions."""
-    source = generate(eq, outputs)
+def compile_model(eq: Equations, outputs=(), runtime=()) -> Model:
+    """Generate, compile (cached by source hash) and wrap the model functions.
+
+    ``runtime``: parameter symbols (keys of ``eq.params``) that stay variables of the generated
+    code, set per run by :meth:`Model.set_parameters` (a parameter study compiles once)."""
+    source = generate(eq, outputs, runtime)
     meta = {"name": eq.name, "state_names": eq.state_names, "x0": [float(v) for v in eq.initial_values()],
             "outputs": list(outputs), "units": {o: eq.units.get(o, "") for o in outputs},
             "aliases": {v.name: [r.name, int(s)] for v, (r, s) in eq.analysis.aliases.items()}
             if eq.analysis is not None else {}}
+    if runtime:
+        meta["runtime"] = [str(p) for p in runtime]
     return Model(source, meta, eq)
 
 

@@ -73,6 +73,48 @@ DOMAINS: dict[str, Domain] = {
 }
 
 
+@dataclass(frozen=True)
+class Bundle:
+    """A group of one-dimensional ports that a netlist joins with one connection entry.
+
+    ``components`` are (name, domain) pairs; a bundle port ``out`` of an element is its ports
+    ``out.<name>``.  Joining two bundle ports of the same kind joins their components pairwise, so a
+    node of a bundle is one node per component (each with the node rule of its domain).  Power
+    through a bundle port is the sum of its components' ``e*f``.  A component's displacement (the
+    time integral of its flow: a position or an angle) can be handed from the element that
+    determines it to the others at the node (see :class:`multipole.network.Network`, ``positions``).
+    """
+
+    name: str
+    components: tuple        #: ((component name, domain name), ...)
+    doc: str = ""
+
+    def ports(self, base: str) -> list[str]:
+        """The component port names of a bundle port called ``base``."""
+        return [f"{base}.{c}" for c, _ in self.components]
+
+
+BUNDLES: dict[str, Bundle] = {
+    b.name: b
+    for b in (
+        Bundle("planar", (("x", "translational"), ("y", "translational"), ("phi", "rotational")),
+               "planar rigid-body motion: x, y [m] and the angle phi [rad] about z; loads Fx, Fy [N] "
+               "and the torque T [N*m]; power Fx*vx + Fy*vy + T*omega"),
+    )
+}
+
+
+def bundle(name: "str | Bundle") -> Bundle:
+    """Look up a bundle kind by name (``planar``)."""
+    if isinstance(name, Bundle):
+        return name
+    try:
+        return BUNDLES[name]
+    except KeyError:
+        raise ModelError("unknown_bundle", f"unknown port bundle {name!r}",
+                         f"use one of {', '.join(BUNDLES)}") from None
+
+
 def domain(name: "str | Domain") -> Domain:
     """Look up a domain by name (``rotational``, ``translational``, ``electrical``, ``hydraulic``)."""
     if isinstance(name, Domain):

@@ -45,6 +45,7 @@ class Block:
     notes: list
     matrix: sp.Matrix | None = None   # numeric linear blocks: A z = b
     rhs: sp.Matrix | None = None
+    start: list | None = None         # newton blocks: symbols whose values are the first start
 
 
 @dataclass
@@ -333,7 +334,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             if j is not None and j != i:
                 g.add_edge(j, i)
     cond = nx.condensation(g)
-    blocks: list[Block] = []
+    blocks, closed = _closure_blocks(analysis)
     diagnostics: list[Diagnostic] = []
     for c in nx.topological_sort(cond):
         members = sorted(cond.nodes[c]["members"])
@@ -386,6 +387,8 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res, symbolic=len(zs) <= SYMBOLIC_LIMIT))
     states = analysis.states
     available, units = _available(analysis)
+    if closed:
+        _use_closed(blocks, available, closed)
     eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
                    analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
     _loops_at_start(eq)
@@ -394,6 +397,60 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         if report is not None:
             diagnostics.append(report)
     return eq
+
+
+def closed_symbol(state) -> sp.Symbol:
+    """The symbol of a closure-bound state's value on the closure (``crank.L1.q3*``)."""
+    return var(state.name + "*")
+
+
+def _closure_blocks(analysis: Analysis) -> tuple[list, dict]:
+    """One Newton block per closure of the flat network (:class:`multipole.network.Closure`), in
+    the order their residuals need each other, and the map state -> its value on the closure.
+
+    The block solves the closure's residuals for the closed values of its states, started from the
+    integrated values; everything the equations compute from those states then reads the closed
+    values (see :func:`_use_closed`), so a position never drifts off its closure."""
+    closures = analysis.flat.closures
+    closed = {s: closed_symbol(s) for states, _r, _o in closures for s in states}
+    order = nx.DiGraph()
+    order.add_nodes_from(range(len(closures)))
+    owner_of = {s: k for k, (states, _r, _o) in enumerate(closures) for s in states}
+    for k, (_s, residuals, _o) in enumerate(closures):
+        for r in residuals:
+            for v in sp.sympify(r).free_symbols:
+                if v in owner_of and owner_of[v] != k:
+                    order.add_edge(owner_of[v], k)
+    if not nx.is_directed_acyclic_graph(order):
+        raise IllPosedError("position_loop", "the position closures of "
+                            + ", ".join(sorted({o for _s, _r, o in closures})) + " need each other in a circle",
+                            "build the mechanism in structural order (each group anchored on bodies determined "
+                            "before it)")
+    blocks = []
+    for k in nx.topological_sort(order):
+        states, residuals, owner = closures[k]
+        res = [sp.sympify(r).xreplace(closed) for r in residuals]
+        blocks.append(Block("newton", [closed[s] for s in states], None, res, [owner] * len(res),
+                            ["position closure"] * len(res), start=list(states)))
+    return blocks, closed
+
+
+def _use_closed(blocks: list, available: dict, closed: dict) -> None:
+    """Make every block after the closures, and every output, read the closed state values."""
+    def swap(e):
+        e = sp.sympify(e)
+        return e.xreplace(closed) if e.free_symbols & closed.keys() else e
+    for b in blocks:
+        if b.start is not None:
+            continue
+        b.residuals = [swap(r) for r in b.residuals]
+        if b.solution is not None:
+            b.solution = [swap(x) for x in b.solution]
+        if b.matrix is not None:
+            b.matrix = b.matrix.applyfunc(swap)
+            b.rhs = b.rhs.applyfunc(swap)
+    for name, e in list(available.items()):
+        available[name] = swap(e)
 
 
 def evaluate_blocks(eq: Equations, t: float, x, wanted) -> dict:
@@ -489,6 +546,8 @@ def _newton_block(b: Block, values: dict):
     n = len(b.variables)
     rng = np.random.default_rng(0)
     starts = [np.zeros(n), np.ones(n), -np.ones(n)] + [rng.normal(scale=10.0, size=n) for _ in range(3)]
+    if b.start is not None:         # a closure: from the integrated values only (the branch they are on)
+        starts = [np.array([float(values[s]) for s in b.start])]
     for z0 in starts:
         with np.errstate(all="ignore"):
             z, _info, ok, _msg = fsolve(f, z0, fprime=fprime, full_output=True)

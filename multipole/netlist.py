@@ -24,7 +24,7 @@ import yaml
 from .catalogue import ElementType, catalogue
 from .errors import MultipoleError, NetlistError
 from .expressions import MAX_DIGITS, parse_expression, reserved
-from .network import Network
+from .network import Network, expand_connection
 from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive
 from .stages import bulk
 
@@ -552,14 +552,17 @@ class _Builder:
                     raise self.err("unknown_element", f"connection names unknown element {el!r}",
                                    f"elements are {', '.join(children)}", line)
                 ports = children[el].ports
-                if port not in ports:
+                if port not in ports and port not in (getattr(children[el], "bundles", None) or {}):
                     raise self.err("unknown_port", f"element '{el}' has no port {port!r}",
                                    f"its ports are {', '.join(ports)}", line, el)
                 if ref in seen:
                     raise self.err("port_used_twice", f"port {ref} is used twice (also on line {seen[ref]})",
                                    "list all ports of one node in a single connection entry", line, el)
                 seen[ref] = line
-            out.append(list(conn))
+            try:
+                out += expand_connection(list(conn), children)
+            except MultipoleError as exc:
+                raise self.err(exc.code, exc.message, exc.fix, line) from None
         return out
 
     def outputs(self, d):

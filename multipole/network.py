@@ -18,8 +18,8 @@ from typing import Callable
 import networkx as nx
 import sympy as sp
 
-from .domains import Domain
-from .errors import ModelError
+from .domains import Domain, bundle
+from .errors import IllPosedError, ModelError
 from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive, Relation, negative, plain_sum
 from .stages import bulk
 
@@ -39,6 +39,57 @@ class Quantity:
     doc: str = ""
 
 
+@dataclass
+class Closure:
+    """A holonomic closure: residuals ``g = 0`` that pin the values of some displacement states.
+
+    ``states`` are references ``"child.state"`` to integrated displacement states (the angles of a
+    modulated transformer, say) whose rates the network's velocity relations already determine;
+    ``residuals`` (as many, expressions in the network's local names: parameters, signals and
+    position reads) are the position-level relations those rates are the time derivative of.  The
+    equations stage solves ``g = 0`` for the states at every evaluation (Newton's method, started
+    from the integrated values), so the positions never drift from the closure; the integrated values
+    only keep track of the branch (the assembly mode).
+    """
+
+    states: list
+    residuals: list
+    doc: str = ""
+
+
+def expand_connection(conn, children) -> list:
+    """The component connections of a connection entry: an entry joining bundle ports (``[crank.out,
+    coupler.a]``) becomes one entry per component (``[crank.out.x, coupler.a.x]``, …); an entry of
+    plain ports is returned as it is.  Mixing a bundle with a plain port, or bundles of different
+    kinds, is a ``bundle_mismatch`` error naming both ports and their kinds."""
+    def bundle_of(ref):
+        el, port = ref.split(".", 1)
+        return (getattr(children.get(el), "bundles", None) or {}).get(port)
+
+    kinds = [bundle_of(ref) for ref in conn]
+    if not any(kinds):
+        return [list(conn)]
+    for ref, kind in zip(conn, kinds):
+        if kind != kinds[0]:
+            first, other = (conn[0], kinds[0]), (ref, kind)
+            words = [f"a {k} bundle port" if k else f"a {_plain_kind(r, children)} port" for r, k in (first, other)]
+            raise ModelError("bundle_mismatch", f"cannot join {first[0]} ({words[0]}) and {ref} ({words[1]})",
+                             "join a bundle port only with bundle ports of the same kind; a one-dimensional "
+                             "element attaches to an element's one-dimensional sub-ports")
+    return [[f"{ref}.{c}" for ref in conn] for c, _ in bundle(kinds[0]).components]
+
+
+def _plain_kind(ref, children) -> str:
+    """The domain name of a one-dimensional port ``child.port`` for messages."""
+    el, port = ref.split(".", 1)
+    child = children.get(el)
+    try:
+        dom = child.ports[port] if isinstance(child, Primitive) else child.port_domain(port)
+        return f"one-dimensional {dom.name}"
+    except (KeyError, AttributeError, ModelError):
+        return "unknown"
+
+
 class Network:
     """A multipole made of children joined by connections, with named external ports.
 
@@ -50,13 +101,25 @@ class Network:
     inertia's momentum is ``pinion.p``, not ``pinion.I.p``).  ``signals``: name -> ``"child.state"``;
     laws and ratios of the children may use the name for that state (e.g. the mesh position
     ``phi`` of a gear stage, integrated by a :class:`~multipole.primitives.Tap`).
+
+    Port bundles and positions (used by planar mechanisms, but not specific to them):
+    ``bundles``: name -> bundle kind (``"planar"``); the bundle ``out`` consists of the external
+    ports ``out.x``, ``out.y``, ``out.phi`` and a connection entry may name ``child.out`` to join all
+    components.  ``positions``: external port -> expression of its displacement (a position [m] or
+    an angle [rad]) in local names: the network determines the position of whatever that port is
+    joined to.  ``reads``: local name -> ``(external port, default)``: the name stands for the
+    position of the node the port is joined to, as determined by the one element that provides it,
+    or ``default`` if the port is not connected.  ``fixed``: external ports that are held (flow 0)
+    when nobody connects them, instead of being free (effort 0): a bearing that is frame-fixed
+    unless attached.  ``closures``: :class:`Closure` records.
     """
 
     def __init__(self, kind: str, children: dict, connections=(), ports=None, params=None,
-                 quantities=None, body: str | None = None, doc: str = "", prefer_state=None, signals=None):
+                 quantities=None, body: str | None = None, doc: str = "", prefer_state=None, signals=None,
+                 bundles=None, positions=None, reads=None, fixed=(), closures=()):
         self.kind = kind
         self.children = dict(children)
-        self.connections = [list(c) for c in connections]
+        self.connections = [part for c in connections for part in expand_connection(list(c), self.children)]
         self.ports = dict(ports or {})
         self.params = dict(params or {})
         self.quantities = dict(quantities or {})
@@ -64,6 +127,15 @@ class Network:
         self.doc = doc
         self.prefer_state = list(prefer_state or [])
         self.signals = dict(signals or {})
+        self.bundles = dict(bundles or {})
+        self.positions = dict(positions or {})
+        self.reads = dict(reads or {})
+        self.fixed = list(fixed)
+        self.closures = list(closures)
+        for name, kind in self.bundles.items():
+            missing = [p for p in bundle(kind).ports(name) if p not in self.ports]
+            if missing:
+                raise ModelError("bad_bundle", f"{kind}: bundle {name!r} lacks the ports {', '.join(missing)}")
         for ref in list(self.ports.values()) + [r for c in self.connections for r in c]:
             child = ref.split(".", 1)[0]
             if child not in self.children:
@@ -71,6 +143,9 @@ class Network:
                                  f"children are {', '.join(self.children)}")
 
     def port_domain(self, name: str) -> Domain:
+        if name not in self.ports and name in self.bundles:
+            raise ModelError("bundle_mismatch", f"{self.kind}.{name} is a {self.bundles[name]} bundle port, "
+                             "not a one-dimensional port")
         child, port = self.ports[name].split(".", 1)
         c = self.children[child]
         return c.ports[port] if isinstance(c, Primitive) else c.port_domain(port)
@@ -113,6 +188,7 @@ class Node:
     ports: list
     domain: Domain
     origin: str = "connection"
+    held: bool = False          #: a termination that holds the port (flow 0) instead of leaving it free
 
     @property
     def name(self) -> str:
@@ -134,6 +210,7 @@ class FlatNetwork:
     elements: dict = field(default_factory=dict)        # element path -> kind
     external_ports: dict = field(default_factory=dict)  # "elem.port" -> primitive port path
     prefer_state: list = field(default_factory=list)
+    closures: list = field(default_factory=list)        # (state symbols, residual expressions, owner)
     graph: nx.Graph = field(default_factory=nx.Graph)
 
     def variables(self) -> list:
@@ -189,6 +266,9 @@ class _Flattener:
     def __init__(self):
         self.flat = FlatNetwork()
         self.used: dict[str, str] = {}
+        self.positions: dict = {}      # primitive port path -> (expression, element path)
+        self.reads: dict = {}          # placeholder symbol -> (primitive port path, default, element path)
+        self.fixed: set = set()        # primitive port paths held (flow 0) when unconnected
 
     # -- symbols -----------------------------------------------------------------------------
     def resolve(self, expr, scope: _Scope, where: str, subs=None):
@@ -252,7 +332,21 @@ class _Flattener:
 
     def walk(self, net: Network, path: str, scope: _Scope | None):
         signals = {name: var(self.state_path(net, path, ref)) for name, ref in net.signals.items()}
+        for local, (port, _default) in net.reads.items():
+            signals[local] = var(f"position({self.port_path(net, path, net.ports[port])})")
         scope = _Scope(path, net.params, scope, signals)
+        where = path or "<root>"
+        for local, (port, default) in net.reads.items():
+            pp = self.port_path(net, path, net.ports[port])
+            self.reads[signals[local]] = (pp, self.resolve(default, scope, f"{where} position {port}"), where)
+        for port, expr in net.positions.items():
+            self.positions[self.port_path(net, path, net.ports[port])] = \
+                (self.resolve(expr, scope, f"{where} position {port}"), where)
+        self.fixed |= {self.port_path(net, path, net.ports[port]) for port in net.fixed}
+        for c in net.closures:
+            states = [var(self.state_path(net, path, ref)) for ref in c.states]
+            residuals = [self.resolve(r, scope, f"{where} closure") for r in c.residuals]
+            self.flat.closures.append((states, residuals, where))
         self.flat.elements[path or "<root>"] = net.kind
         self.flat.prefer_state += [_join(path, r) for r in net.prefer_state]
         for name, child in net.children.items():
@@ -314,12 +408,87 @@ class _Flattener:
         for pp, dom in self.flat.port_domains.items():
             if pp in self.used:
                 continue
-            v = var(f"{pp}.{dom.free_variable}")
-            node = Node([pp], dom, origin="termination")
+            held = pp in self.fixed
+            v = var(f"{pp}.{'f' if held else dom.free_variable}")
+            node = Node([pp], dom, origin="termination", held=held)
             self.flat.nodes.append(node)
             self.flat.equations.append(Equation(v, node.name, "termination", v,
+                                                "held, not connected (flow 0)" if held else
                                                 "free end (effort 0)" if dom.free_variable == "e"
                                                 else "open port (flow 0)"))
+
+    def resolve_positions(self):
+        """Replace every position read by the expression of the one element that determines the
+        position of its node (or the read's default where the port is not connected), then the states'
+        initial values that refer to other states by those states' initial values."""
+        if not self.reads:
+            return
+        node_of = {p: n for n in self.flat.nodes for p in n.ports}
+        provider: dict = {}
+        for pp, (expr, owner) in self.positions.items():
+            node = node_of[pp]
+            if node.name in provider:
+                other = provider[node.name][2]
+                raise IllPosedError("position_overdetermined",
+                                    f"{other} and {owner} both determine the {_component(pp)} of the node "
+                                    f"{node.name}: the loop they close is over-constrained (a passive "
+                                    "constraint: its joint forces are indeterminate)",
+                                    f"join an output of {owner} to an anchor (an input) of a following element "
+                                    "instead of to another output, or remove the redundant element")
+            provider[node.name] = (pp, expr, owner)
+        resolved: dict = {}
+
+        def value(ph, stack):
+            if ph in resolved:
+                return resolved[ph]
+            pp, default, owner = self.reads[ph]
+            if ph in stack:
+                raise IllPosedError("position_loop", f"the position {_component(pp)} read by {owner} depends on "
+                                    "itself through a closed chain of elements",
+                                    "build the mechanism in structural order: every element's anchors on "
+                                    "bodies that elements before it determine (no group of class 3 or higher)")
+            node = node_of[pp]
+            prov = provider.get(node.name)
+            if prov is None and len(node.ports) > 1:
+                raise IllPosedError("position_undetermined", f"no element determines the {_component(pp)} of "
+                                    f"{node.name} that {owner} reads",
+                                    "join the port to an output port of a moving element, or leave it "
+                                    "unconnected to fix it to the frame")
+            expr = default if prov is None else prov[1]
+            subs = {s: value(s, stack | {ph}) for s in expr.free_symbols if s in self.reads}
+            resolved[ph] = expr.xreplace(subs) if subs else expr
+            return resolved[ph]
+
+        for ph in self.reads:
+            value(ph, frozenset())
+        fl = self.flat
+        for eq in fl.equations:
+            if eq.expr.free_symbols & resolved.keys():
+                eq.expr = eq.expr.xreplace(resolved)
+        fl.closures = [(st, [sp.sympify(r).xreplace(resolved) for r in res], owner) for st, res, owner in fl.closures]
+        fl.quantities = {k: (sp.sympify(e).xreplace(resolved), u, d) for k, (e, u, d) in fl.quantities.items()}
+        for s in fl.states:
+            s.rhs = sp.sympify(s.rhs).xreplace(resolved)
+            s.initial = sp.sympify(s.initial).xreplace(resolved)
+        initial = {s.symbol: s.initial for s in fl.states}
+        for _ in range(len(initial) + 1):
+            changed = False
+            for s in fl.states:
+                deps = s.initial.free_symbols & initial.keys()
+                if deps:
+                    s.initial = s.initial.xreplace({d: initial[d] for d in deps})
+                    initial[s.symbol] = s.initial
+                    changed = True
+            if not changed:
+                break
+        else:
+            raise IllPosedError("position_loop", "initial values of states depend on each other in a circle")
+
+
+def _component(pp: str) -> str:
+    """``"crank.b.x"`` -> ``"x of crank.b"`` for messages."""
+    head, comp = pp.rsplit(".", 1)
+    return f"{comp} of {head}"
 
 
 class _PrimVars:
@@ -391,4 +560,5 @@ def flatten(root: Network) -> FlatNetwork:
         for port in ports:
             fl.flat.external_ports[f"{name}.{port}"] = fl.port_path(root, "", f"{name}.{port}")
     fl.terminate()
+    fl.resolve_positions()
     return fl.flat

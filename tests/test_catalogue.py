@@ -61,7 +61,8 @@ def _built(name):
     for sample in SAMPLES.get(name, [{}]):
         given = {p.name: 1.0 for p in et.params if p.required}
         made = et.build(**{**given, **sample})
-        ports |= set(made.ports)
+        bundles = getattr(made, "bundles", {})      # a bundle port is documented once, as its name
+        ports |= {p for p in made.ports if p.split(".")[0] not in bundles} | set(bundles)
         if isinstance(made, Network):
             collect(made, "")
     return quantities, ports

@@ -226,6 +226,7 @@ class _Writer(codegen.Writer):
             self.blocks_src += src
         deps = self.deps[k]
         lines = [f"    _a = np.empty({max(len(deps), 1)})"] + [f"    _a[{i}] = {N[d]}" for i, d in enumerate(deps)]
+        lines += [f"    w[{self.offsets[k] + i}] = {N[v]}" for i, v in enumerate(b.start or ())]
         return lines + [f"    _z = _newton{k}(w, _a)"] + [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
 
     def function(self, name, doc, needed, values, shape) -> list:

@@ -336,10 +336,11 @@ def test_a_model_numba_cannot_compile_runs_on_numpy_visibly(nb, monkeypatch):
     and ``solver_reason``; the numpy run gives the right answer."""
     from multipole.errors import MultipoleWarning
     _numba_cannot_compile(nb, monkeypatch)
-    with pytest.warns(MultipoleWarning, match=r"numba backend could not compile .*TypingError: no typing"):
+    with pytest.warns(MultipoleWarning, match=r"numba backend could not compile this model \(TypingError: no typing") as rec:
         res = pipeline.run(load(RLC), t_end=0.01, progress=False, backend="numba")
+    assert not any("refused" in str(w.message) for w in rec)
     reason = "TypingError: no typing for this construct"
-    assert res.stats["backend"] == f"numpy (fallback: {reason})"
+    assert res.stats["backend"] == f"numpy (fallback: could not compile: {reason})"
     assert f"({reason}), ran numpy instead" in res.solver_reason
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
 
@@ -352,19 +353,25 @@ def test_a_model_the_numba_printer_cannot_translate_runs_on_numpy_visibly(nb, mo
     monkeypatch.setattr(nb, "translate", untranslatable)
     with pytest.warns(MultipoleWarning, match="NotImplementedError"):
         res = pipeline.run(load(RLC), t_end=0.01, progress=False, backend="numba")
-    assert res.stats["backend"].startswith("numpy (fallback: NotImplementedError: the numba printer has no rule")
+    assert res.stats["backend"].startswith("numpy (fallback: could not compile: NotImplementedError: the numba "
+                                           "printer has no rule")
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
 
 
 def test_a_model_above_the_compile_size_limit_runs_on_numpy_visibly(nb, monkeypatch):
     """numba is not started on a module whose source cost is above the limit (its compile time grows
-    super-linearly): the run falls back with the reason and the limit named; below it, numba runs."""
+    super-linearly): the run falls back saying the model was *refused as too large* (not that it
+    failed to compile), with the cost, the limit and the variable that raises it; below it, numba runs."""
     from multipole.errors import MultipoleWarning
     monkeypatch.setenv("MULTIPOLE_NUMBA_MAX_COST", "1000")
-    with pytest.warns(MultipoleWarning, match=r"ModelTooLarge: .*above the limit of 1,000"):
+    with pytest.warns(MultipoleWarning, match=r"numba backend refused this model as too large \(generated source "
+                      r"costs [\d,]+ .*above the limit of 1,000; set the environment variable "
+                      r"MULTIPOLE_NUMBA_MAX_COST above the cost") as rec:
         res = pipeline.run(load(RLC), t_end=0.01, progress=False, backend="numba")
-    assert res.stats["backend"].startswith("numpy (fallback: ModelTooLarge: generated source costs ")
-    assert "above the limit of 1,000 (MULTIPOLE_NUMBA_MAX_COST)" in res.stats["backend"]
+    assert not any("could not compile" in str(w.message) for w in rec)
+    assert res.stats["backend"].startswith("numpy (fallback: refused as too large: generated source costs ")
+    assert res.stats["backend"].endswith("above the limit of 1,000)")
+    assert "refused this model as too large" in res.solver_reason
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
     monkeypatch.delenv("MULTIPOLE_NUMBA_MAX_COST")
     assert run_numba(RLC, t_end=0.01).stats["backend"] == "numba"

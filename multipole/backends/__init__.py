@@ -8,8 +8,9 @@ The seam (docs/backends.md):
 * calling the backend runs the one shared driver, :func:`multipole.simulate.simulate`: options,
   output grid, the ``auto`` choice, the schedule of the time-switches, progress bar, events,
   statistics (:data:`multipole.simulate.STATS_KEYS`), output sampling, non-finite check, errors;
-* a model that ``compile`` cannot build (any exception that is not a
-  :class:`~multipole.errors.MultipoleError`) runs on the ``numpy`` backend instead, visibly
+* a model that ``compile`` refuses (:class:`Refused`, e.g. too large to compile in bounded time)
+  or cannot build (any other exception that is not a :class:`~multipole.errors.MultipoleError`)
+  runs on the ``numpy`` backend instead, visibly, and the message says which of the two happened
   (:func:`fallback`).
 
 Backends register like element libraries do: an entry point in the ``multipole.backends`` group
@@ -129,23 +130,40 @@ class Backend:
             model = self.compile(equations, outputs)
         except MultipoleError:
             raise
-        except Exception as exc:       # a compiler's own failure (numba: TypingError, internal errors)
+        except Exception as exc:       # a refusal, or a compiler's own failure (numba: TypingError, internal errors)
             if self.name == "numpy":
                 raise
             return fallback(self.name, equations, outputs, exc, t_end, dt_out, solver, rtol, atol, max_step, progress)
         return simulate(model, t_end, dt_out, solver, rtol, atol, max_step, progress, integrator=self.integrator)
 
 
+class Refused(Exception):
+    """Raised by a backend's ``compile`` for a model it declines to start on (not a failure of its
+    compiler): :func:`fallback` says the model was refused, with ``reason`` (what and the figures)
+    and ``fix`` (how to make the backend take it)."""
+
+    def __init__(self, what: str, reason: str, fix: str):
+        super().__init__(f"{what}: {reason}")
+        self.what, self.reason, self.fix = what, reason, fix
+
+
 def fallback(name, equations, outputs, exc, *options):
-    """Run on the numpy backend because backend ``name`` could not compile the model, visibly: a
-    :class:`~multipole.errors.MultipoleWarning` (one line on stderr from the CLI) names the reason,
-    and so do ``solver_reason`` and ``stats["backend"]`` (``numpy (fallback: reason)``)."""
-    first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    why = f"{type(exc).__name__}: {first}"[:160]
-    warnings.warn(f"{equations.name}: the {name} backend could not compile this model ({why}); "
-                  f"running the numpy backend instead", MultipoleWarning, stacklevel=3)
+    """Run on the numpy backend because backend ``name`` refused the model (:class:`Refused`: e.g.
+    too large to compile in bounded time) or failed to compile it (any other exception), visibly: a
+    :class:`~multipole.errors.MultipoleWarning` (one line on stderr from the CLI) says which and why,
+    and so do ``solver_reason`` and ``stats["backend"]``: ``numpy (fallback: refused as WHAT:
+    reason)`` or ``numpy (fallback: could not compile: ExceptionType: first line)``."""
+    if isinstance(exc, Refused):
+        why = f"refused as {exc.what}: {exc.reason}"
+        said = f"the {name} backend refused this model as {exc.what} ({exc.reason}; {exc.fix})"
+    else:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        detail = f"{type(exc).__name__}: {first}"[:160]
+        why = f"could not compile: {detail}"
+        said = f"the {name} backend could not compile this model ({detail})"
+    warnings.warn(f"{equations.name}: {said}; running the numpy backend instead", MultipoleWarning, stacklevel=3)
     result = get_backend("numpy")(equations, outputs, *options)
-    result.solver_reason += f"; {name} backend could not compile this model ({why}), ran numpy instead"
+    result.solver_reason += f"; {said}, ran numpy instead"
     result.stats["backend"] = f"numpy (fallback: {why})"
     return result
 

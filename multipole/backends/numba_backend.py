@@ -36,8 +36,10 @@ Solvers: ``RK45`` (Dormand–Prince 5(4), explicit), ``Radau`` (Radau IIA order 
 Jacobian) and ``auto`` (the stiffness test of :func:`multipole.simulate.choose_solver`).  ``DOP853``
 and ``RK23`` run as ``RK45``, ``BDF`` and ``LSODA`` as ``Radau``; ``Result.solver_reason`` says so.
 Models numba cannot compile run on the ``numpy`` backend, visibly: a ``MultipoleWarning`` names the
-reason, and so do ``stats["backend"]`` (``numpy (fallback: reason)``) and ``solver_reason``; so do
-models whose generated source costs more than :data:`MAX_SOURCE_COST` (numba would compile them for minutes).
+reason, and so do ``stats["backend"]`` (``numpy (fallback: could not compile: reason)``) and
+``solver_reason``; so do models whose generated source costs more than :data:`MAX_SOURCE_COST` (numba
+would compile them for minutes), which the backend refuses as too large (``numpy (fallback: refused as
+too large: ...)``, with the cost, the limit and ``MULTIPOLE_NUMBA_MAX_COST``).
 """
 from __future__ import annotations
 
@@ -57,7 +59,7 @@ from sympy.printing.precedence import PRECEDENCE
 
 from .. import cache, codegen
 from ..simulate import MAX_EVENTS, Run, SimulationError, chattering, step_failed
-from . import Backend
+from . import Backend, Refused
 from . import numba_kernels as K
 
 #: explicit and implicit method of this backend, and what the other scipy names run as
@@ -316,8 +318,9 @@ SUBSCRIPT_COST = 100
 _SUBSCRIPT = re.compile(r"[A-Za-z_]\w*\[")
 
 
-class ModelTooLarge(RuntimeError):
-    """The generated source costs more than :func:`max_source_cost`: the backend does not start numba."""
+class ModelTooLarge(Refused):
+    """The generated source costs more than :func:`max_source_cost`: the backend does not start numba
+    (the run falls back to numpy, saying the model was refused as too large)."""
 
 
 def source_cost(source: str) -> int:
@@ -337,8 +340,10 @@ def check_size(source: str) -> None:
     """Raise :class:`ModelTooLarge` (the caller falls back to numpy) if ``source`` is above the limit."""
     cost, limit = source_cost(source), max_source_cost()
     if cost > limit:
-        raise ModelTooLarge(f"generated source costs {cost:,} (bytes + {SUBSCRIPT_COST} per subscript), above "
-                            f"the limit of {limit:,} (MULTIPOLE_NUMBA_MAX_COST)")
+        raise ModelTooLarge("too large", f"generated source costs {cost:,} (bytes + {SUBSCRIPT_COST} per subscript), "
+                            f"above the limit of {limit:,}",
+                            "set the environment variable MULTIPOLE_NUMBA_MAX_COST above the cost to compile it "
+                            "anyway, and wait")
 
 
 _SOURCES: dict = {}

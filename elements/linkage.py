@@ -60,7 +60,7 @@ def _zero(value) -> bool:
     return isinstance(value, (int, float)) and value == 0
 
 
-def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0)) -> Network:
+def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0), angle=None, slide=None) -> Network:
     """A rigid link turning about its reference point A at the angle ``phi`` (the state ``K.q3``).
 
     ``points``: body-frame offsets ``(rx, ry)`` [m] of the joint points P1, P2, … from A (local
@@ -70,15 +70,21 @@ def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0)) -> Netw
     ``m`` [kg] and ``J`` [kg*m^2] (about the centre of mass at ``(xs, ys)`` [m] in the body frame)
     are left out where they are the number 0; gravity ``(gx, gy)`` [m/s^2] acts on ``m``.
     ``p0``: initial momenta of the x, y and rotational inertias [N*s, N*s, N*m*s].
+    ``angle``: an expression in local names (a position read) used as the link angle instead of the
+    link's own integrated angle: a body welded to a neighbour's plane (no ``phi`` signal then).
+    ``slide``: initial travel [m] of a slider: the body then moves along its x axis by the travel
+    ``s`` (state ``K.q4``, signal ``s``, rate and tangential force at the port ``s`` [m/s, N]), and
+    every offset (points, centre of mass) is measured from the foot point A + s*e(angle).
     """
-    q = _S("q3")
+    q, s = (_S("q3") if angle is None else sp.sympify(angle)), (0 if slide is None else _S("q4"))
     rows = []
     for rx, ry in [(xs, ys)] + list(points):
-        rx, ry = sp.sympify(rx), sp.sympify(ry)
-        rows.append([1, 0, -(rx * _sin(q) + ry * _cos(q))])
-        rows.append([0, 1, rx * _cos(q) - ry * _sin(q)])
-    children = {"K": MTF(rows, ["translational"] * len(rows), ["translational", "translational", "rotational"],
-                         q0=[0, 0, phi0]),
+        rx, ry = sp.sympify(rx) + s, sp.sympify(ry)
+        rows.append([1, 0, -(rx * _sin(q) + ry * _cos(q))] + ([] if slide is None else [_cos(q)]))
+        rows.append([0, 1, rx * _cos(q) - ry * _sin(q)] + ([] if slide is None else [_sin(q)]))
+    b_doms = ["translational", "translational", "rotational"] + ([] if slide is None else ["translational"])
+    children = {"K": MTF(rows, ["translational"] * len(rows), b_doms,
+                         q0=[0, 0, 0 if phi0 is None else phi0] + ([] if slide is None else [slide])),
                 "W": junction_b(["k", "J"] + list(omega_ports), "rotational")}
     connections = [["K.b3", "W.k"]]
     if not _zero(m):
@@ -97,7 +103,10 @@ def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0)) -> Netw
         ports[f"P{k + 1}.x"] = f"K.a{2 * k + 3}"
         ports[f"P{k + 1}.y"] = f"K.a{2 * k + 4}"
     ports.update({f"w.{n}": f"W.{n}" for n in omega_ports})
-    return Network("link", children, connections, ports, signals={"phi": "K.q3"})
+    if slide is not None:
+        ports["s"] = "K.b4"
+    signals = ({} if angle is not None else {"phi": "K.q3"}) | ({} if slide is None else {"s": "K.q4"})
+    return Network("link", children, connections, ports, signals=signals)
 
 
 _PLANAR_DOC = "planar bundle (x, y [m], phi [rad]; Fx, Fy [N], T [N*m])"
@@ -114,6 +123,7 @@ _PLANAR_DOC = "planar bundle (x, y [m], phi [rad]; Fx, Fy [N], T [N*m])"
           Param("omega0", "rad/s", "initial angular velocity", 0.0)]
          + _body("m", "J", "xs", "ys") + _gravity() + _anchor("x1", "y1"),
          {"phi": "rad: crank angle (continuous, not wrapped)", "omega": "rad/s: crank angular velocity",
+          "alpha": "rad/s^2: crank angular acceleration (needs J > 0)",
           "x": "m: x of the crank tip P", "y": "m: y of the crank tip P", "torque": "N*m: torque at the drive port"})
 def DAN(l, phi0, omega0, xs, ys, m, J, gx, gy, x1, y1):
     """Rotary drive (VDI 2729 DAN) [lengths m, angles rad, m kg, J kg*m^2 about the centre of mass]."""
@@ -134,6 +144,8 @@ def DAN(l, phi0, omega0, xs, ys, m, J, gx, gy, x1, y1):
          "x": Quantity(lambda V: V.param("xa") + V.param("l") * sp.cos(V.x("L.K.q3"))),
          "y": Quantity(lambda V: V.param("ya") + V.param("l") * sp.sin(V.x("L.K.q3"))),
          "torque": Quantity(lambda V: V.e("L.w.drive"))}
+    if not _zero(J):
+        q["alpha"] = Quantity(lambda V: V.e("L.J.p") / V.param("J"))
     return Network("DAN", {"L": crank, "H": housing}, [], ports, params, q, signals={"phiL": "L.K.q3"},
                    bundles={"a": "planar", "b": "planar"},
                    positions={"b.x": xa + _S("l") * _cos(ph), "b.y": ya + _S("l") * _sin(ph), "b.phi": ph},
@@ -158,6 +170,8 @@ def DAN(l, phi0, omega0, xs, ys, m, J, gx, gy, x1, y1):
          + _anchor("x1", "y1") + _anchor("x2", "y2"),
          {"phi1": "rad: angle of link 1 (P1 -> P)", "phi2": "rad: angle of link 2 (P2 -> P)",
           "omega1": "rad/s: angular velocity of link 1", "omega2": "rad/s: angular velocity of link 2",
+          "alpha1": "rad/s^2: angular acceleration of link 1 (needs J1 > 0)",
+          "alpha2": "rad/s^2: angular acceleration of link 2 (needs J2 > 0)",
           "x": "m: x of the joint P", "y": "m: y of the joint P",
           "transmission": "-: sin(phi2 - phi1), the sine of the transmission angle (0 at the dead centre)"})
 def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
@@ -204,6 +218,9 @@ def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
          "x": Quantity(lambda V: V.param("xa1") + V.param("l1") * sp.cos(V.x("L1.K.q3"))),
          "y": Quantity(lambda V: V.param("ya1") + V.param("l1") * sp.sin(V.x("L1.K.q3"))),
          "transmission": Quantity(lambda V: sp.sin(V.x("L2.K.q3") - V.x("L1.K.q3")))}
+    for k, inertia in ((1, J1), (2, J2)):
+        if not _zero(inertia):
+            q[f"alpha{k}"] = Quantity(lambda V, k=k: V.e(f"L{k}.J.p") / V.param(f"J{k}"))
     return Network("DDD", children, connections, ports, params, q, signals={"phi1": "L1.K.q3", "phi2": "L2.K.q3"},
                    bundles={"a1": "planar", "a2": "planar", "b1": "planar", "b2": "planar"},
                    positions={"b1.x": xa1, "b1.y": ya1, "b1.phi": p1, "b2.x": xa2, "b2.y": ya2, "b2.phi": p2},

@@ -55,6 +55,24 @@ class Closure:
     states: list
     residuals: list
     doc: str = ""
+    #: ``(expr, text[, unit])``: the closure can be assembled at t = 0 only if ``expr >= 0`` there
+    #: (``expr`` in the same local names; the check reports ``text`` and by how much, ``-expr``
+    #: in ``unit``, it fails: a radicand of the start formula, a reach minus a distance)
+    conditions: list = field(default_factory=list)
+    #: ``(expr, threshold, text)``: the closure's Jacobian with respect to its states is singular
+    #: (a dead centre) where ``expr`` is 0; a run in which ``|expr|`` falls below ``threshold``
+    #: reports ``text`` with the time (and stops with ``dead_centre`` if the integration fails there)
+    guard: tuple | None = None
+
+
+@dataclass
+class PositionProblem:
+    """A position found over- or under-determined while flattening (reported by the check)."""
+
+    code: str                   #: position_overdetermined | position_loop | position_undetermined
+    owners: list                #: the element paths involved
+    ports: list                 #: the primitive port paths involved
+    detail: str = ""
 
 
 def expand_connection(conn, children) -> list:
@@ -211,6 +229,14 @@ class FlatNetwork:
     external_ports: dict = field(default_factory=dict)  # "elem.port" -> primitive port path
     prefer_state: list = field(default_factory=list)
     closures: list = field(default_factory=list)        # (state symbols, residual expressions, owner)
+    conditions: list = field(default_factory=list)      # (expr >= 0 at t = 0, text, unit, owner)
+    guards: list = field(default_factory=list)          # (expr, threshold, text, owner)
+    bundles: dict = field(default_factory=dict)         # "elem.port" of a bundle -> bundle kind
+    #: the position graph: primitive port path -> owner of the position it provides, and
+    #: primitive port path of a read -> (owner that reads it, providing owner or None: the frame)
+    position_providers: dict = field(default_factory=dict)
+    position_reads: dict = field(default_factory=dict)
+    position_problems: list = field(default_factory=list)   # PositionProblem, worded by multipole.checks
     graph: nx.Graph = field(default_factory=nx.Graph)
 
     def variables(self) -> list:
@@ -318,6 +344,8 @@ class _Flattener:
                                  f"ports are {', '.join(c.ports)}")
             return f"{cpath}.{port}"
         if port not in c.ports:
+            if port.split(".", 1)[0] in c.children and "." in port:     # a port inside the child (quantities)
+                return self.port_path(c, cpath, port)
             raise ModelError("unknown_port", f"{_join(path, child)} ({c.kind}) has no port {port!r}",
                              f"ports are {', '.join(c.ports)}")
         return self.port_path(c, cpath, c.ports[port])
@@ -347,6 +375,13 @@ class _Flattener:
             states = [var(self.state_path(net, path, ref)) for ref in c.states]
             residuals = [self.resolve(r, scope, f"{where} closure") for r in c.residuals]
             self.flat.closures.append((states, residuals, where))
+            for cond in c.conditions:
+                expr, text, unit = (tuple(cond) + ("",))[:3]
+                self.flat.conditions.append((self.resolve(expr, scope, f"{where} closure"), text, unit, where))
+            if c.guard is not None:
+                expr, threshold, text = c.guard
+                self.flat.guards.append((self.resolve(expr, scope, f"{where} closure"), float(threshold), text,
+                                         where))
         self.flat.elements[path or "<root>"] = net.kind
         self.flat.prefer_state += [_join(path, r) for r in net.prefer_state]
         for name, child in net.children.items():

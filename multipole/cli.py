@@ -272,6 +272,10 @@ def main(argv=None) -> int:
     p.add_argument("--quick", action="store_true", help="fewer tolerances and repeats")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_lazy("bench", "cmd_bench"))
+    p = sub.add_parser("sweep", help="parameter study: one row per run (process pool, or Dask), docs/sweeps.md")
+    from .sweep import add_arguments
+    add_arguments(p)
+    p.set_defaults(func=_lazy("sweep", "cmd_sweep"))
     p = sub.add_parser("elements", help="the element catalogue")
     p.add_argument("type", nargs="?")
     p.add_argument("--markdown", action="store_true", help="the whole catalogue as a markdown reference")

@@ -30,7 +30,10 @@ from .stages import bulk
 
 _LAW_VARS = {"f": LAW_F, "q": LAW_Q, "p": LAW_P}
 _TOP_KEYS = {"name", "description", "parameters", "elements", "connections", "outputs", "simulate",
-             "expect_check", "bench", "prefer_state", "reference"}
+             "expect_check", "bench", "prefer_state", "reference", "metrics"}
+#: what a ``metrics:`` formula (and ``sweep --metrics``) may take of an output ``o``: ``o.final``,
+#: ``o.max``, ``o.min``, ``o.rms``, ``o.mean`` and ``o.settling`` (docs/sweeps.md, "Metrics")
+METRIC_KINDS = ("final", "max", "min", "rms", "mean", "settling")
 _SIM_KEYS = {"t_end": float, "dt_out": float, "solver": str, "rtol": float, "atol": float,
              "max_step": float, "backend": str}
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -172,6 +175,7 @@ class Scene:
     element_types: dict = field(default_factory=dict)
     reference: dict = field(default_factory=dict)
     element_values: dict = field(default_factory=dict)   # element -> {parameter: text as written}, for messages
+    metrics: dict = field(default_factory=dict)   # metric name -> sympy formula of symbols ``output.kind``
 
     def where(self, element: str = "", key: str = "") -> str:
         line = self.element_lines.get(element) or self.output_lines.get(key)
@@ -179,7 +183,7 @@ class Scene:
         return f"{text} element '{element}'" if element else text
 
 
-def load(path, overrides=None) -> Scene:
+def load(path, overrides=None, parameters=None) -> Scene:
     """Read a netlist file (UTF-8, at most :data:`MAX_FILE_BYTES` bytes)."""
     try:
         with open(path, "rb") as fh:
@@ -195,12 +199,16 @@ def load(path, overrides=None) -> Scene:
         line = data[:exc.start].count(b"\n") + 1
         raise NetlistError("not_utf8", f"the file is not UTF-8 text (byte {exc.start} is {data[exc.start]:#04x})",
                            "save the file as UTF-8", f"{path}:{line}") from None
-    return loads(text, str(path), overrides)
+    return loads(text, str(path), overrides, parameters)
 
 
 @bulk
-def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
-    """Read a netlist from text; ``filename`` is used in error messages."""
+def loads(text: str, filename: str = "<netlist>", overrides=None, parameters=None) -> Scene:
+    """Read a netlist from text; ``filename`` is used in error messages.
+
+    ``parameters``: extra scene parameters ``{name: value}`` added to the ``parameters:`` section
+    (a parameter study makes an element parameter a scene parameter this way, ``mesh.c`` set to
+    the name of an added parameter, so that it stays a symbol of the equations)."""
     if len(text) > MAX_FILE_BYTES:
         raise NetlistError("too_large", f"the netlist is longer than {MAX_FILE_BYTES // 1024} KiB",
                            "a netlist is a short text", filename)
@@ -223,7 +231,9 @@ def loads(text: str, filename: str = "<netlist>", overrides=None) -> Scene:
     except NetlistError as exc:          # raised while reading: ``where`` holds ":line"
         exc.where = filename + exc.where
         raise
-    return _Builder(data, filename, dict(overrides or {})).scene(text)
+    builder = _Builder(data, filename, dict(overrides or {}))
+    builder.extra = dict(parameters or {})
+    return builder.scene(text + repr(sorted(builder.extra.items())) if builder.extra else text)
 
 
 def validate_simulate_options(options: dict, where: str = "", lines: dict | None = None) -> dict:
@@ -287,6 +297,7 @@ class _Builder:
         self.data, self.file, self.overrides = data, filename, overrides
         self.used_overrides: set = set()
         self.numbers: dict = {}
+        self.extra: dict = {}
 
     def err(self, code, message, fix="", line=None, element=""):
         where = f"{self.file}:{line}" if line else self.file
@@ -337,6 +348,7 @@ class _Builder:
             raise self.err("bad_value", "reference must be a mapping such as {kind: tight, output: load.omega}",
                            "see 'reference' in docs/netlist.md", d.lines.get("reference"))
         sim = self.simulate(d.get("simulate") or _Map())
+        metrics = self.metrics(d.get("metrics") or _Map(), outputs, d.lines.get("metrics"))
         expect = d.get("expect_check")
         if expect not in (None, 0, 1, 2):
             raise self.err("bad_value", "expect_check must be 0, 1 or 2", line=d.lines.get("expect_check"))
@@ -348,12 +360,17 @@ class _Builder:
         digest = hashlib.sha256((text + repr(sorted(self.overrides.items()))).encode()).hexdigest()
         return Scene(str(d.get("name", Path(self.file).stem)), str(d.get("description", "")), self.file, net,
                      outputs, sim, expect, bool(d.get("bench", False)), digest, out_lines, lines, types,
-                     dict(reference), texts)
+                     dict(reference), texts, metrics)
 
     # -- sections --------------------------------------------------------------------------------
     def parameters(self, raw) -> dict:
         if not isinstance(raw, dict):
             raise self.err("bad_value", "'parameters' must be a mapping name: value", line=getattr(raw, "line", None))
+        if self.extra:
+            merged = _Map(raw)
+            merged.line, merged.lines = raw.line, dict(raw.lines)
+            merged.update(self.extra)
+            raw = merged
         names = {n: sp.Symbol(n) for n in raw if isinstance(n, str)}
         out = {}
         for name, value in raw.items():
@@ -573,6 +590,25 @@ class _Builder:
         lines = {o: (raw.lines[k] if hasattr(raw, "lines") and k < len(raw.lines) else None)
                  for k, o in enumerate(raw)}
         return list(raw), lines
+
+    def metrics(self, raw, outputs, line) -> dict:
+        """``metrics:`` {name: formula of ``output.kind`` values} (:data:`METRIC_KINDS`), each
+        parsed by the expression whitelist; the outputs are those the scene lists."""
+        if not isinstance(raw, dict):
+            raise self.err("bad_metric", "'metrics' must be a mapping name: formula",
+                           "e.g. metrics: {overshoot: \"load.omega.max/load.omega.final - 1\"}", line)
+        symbols = {f"{o}.{k}": sp.Symbol(f"{o}.{k}") for o in outputs for k in METRIC_KINDS}
+        out = {}
+        for name, value in raw.items():
+            mline = raw.lines.get(name, line)
+            if not isinstance(name, str) or not _NAME.match(name) or name in symbols:
+                raise self.err("bad_metric", f"metric name {name!r} must be a plain name (letters, digits, _)",
+                               "e.g. overshoot", mline)
+            if not outputs:
+                raise self.err("bad_metric", f"metric {name!r}: the scene lists no outputs to take metrics of",
+                               "add outputs: [...]", mline)
+            out[name] = self.expr(value, symbols, f"metric '{name}'", mline)
+        return out
 
     def simulate(self, raw) -> dict:
         if not isinstance(raw, dict):

@@ -37,11 +37,13 @@ def cmd_check(args) -> int:
     scene = load(args.file, _overrides(args.set))
     analysis = pipeline.check(scene)
     code = 0 if analysis.ok else 1
+    record = pipeline.pruned(scene)[2] if args.explain and analysis.ok else None
     if args.json:
         print(json.dumps({"file": args.file, "scene": scene.name, "exit_code": code, "well_posed": code == 0,
                           "states": [s.name for s in analysis.states],
                           "derivative_causality": [s.name for s in analysis.demoted],
-                          "diagnostics": [d.to_dict() for d in analysis.diagnostics]}, indent=2))
+                          "diagnostics": [d.to_dict() for d in analysis.diagnostics],
+                          **({"pruning": record.to_dict()} if record is not None else {})}, indent=2))
     else:
         print(f"{args.file}: {scene.name}")
         for d in analysis.diagnostics:
@@ -50,6 +52,8 @@ def cmd_check(args) -> int:
         n_warn = len([d for d in analysis.diagnostics if d.severity == "warning"])
         print(f"{'well-posed' if code == 0 else 'NOT well-posed'}: {n_err} error(s), "
               + (f"{n_warn} warning(s), " if n_warn else "") + f"{len(analysis.states)} state(s)")
+        for line in record.lines() if record is not None else ():
+            print(line)
     return code
 
 
@@ -235,6 +239,7 @@ def main(argv=None) -> int:
     p = sub.add_parser("check", help="causality analysis: exit 0 well-posed, 1 structural problems, 2 invalid file")
     p.add_argument("file")
     p.add_argument("--json", action="store_true", help="machine-readable diagnostics")
+    p.add_argument("--explain", action="store_true", help="also list what the outputs do not need (pruned)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="override a parameter")
     p.set_defaults(func=cmd_check)
     p = sub.add_parser("equations", help="print the derived explicit ODE")

@@ -25,6 +25,7 @@ from .equations import Equations, assemble
 from .errors import IllPosedError, MultipoleError, MultipoleWarning, NetlistError
 from .netlist import Scene, validate_simulate_options
 from .network import flatten
+from .pruning import Pruning, prune as prune_equations
 from .simulate import Result, simulate
 
 _MODELS: dict = {}
@@ -66,22 +67,39 @@ def equations(scene: Scene, analysis: Analysis | None = None) -> Equations:
     return eq
 
 
-def model(scene: Scene, outputs=None) -> Model:
-    """Compiled model for ``outputs`` (default: the scene's outputs, else the states).
+def pruned(scene: Scene, outputs=None, prune: bool = True):
+    """``(equations, outputs, record)``: the scene's equations restricted to what ``outputs``
+    (default: the scene's outputs, else the states) need, with the :class:`~multipole.pruning.Pruning`
+    record of what was dropped (:func:`multipole.pruning.prune`); ``prune`` False keeps everything."""
+    eq = equations(scene)
+    outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
+    if not prune:
+        return eq, outs, Pruning(outs, len(eq.states))
+    memo = eq.__dict__.setdefault("_pruned", {})     # per equations object: a backend caches on it
+    if tuple(outs) not in memo:
+        memo[tuple(outs)] = prune_equations(eq, outs)
+    small, record = memo[tuple(outs)]
+    return small, outs, record
+
+
+def model(scene: Scene, outputs=None, prune: bool = True) -> Model:
+    """Compiled model for ``outputs`` (default: the scene's outputs, else the states), computing
+    only what they need (:func:`pruned`; ``prune`` False: everything, e.g. for ``port_values``).
 
     ``model.compile_time`` is the time spent analysing and generating code [s] (0 when restored
-    from the disk cache, then ``model.cached`` is True).
+    from the disk cache, then ``model.cached`` is True); ``model.meta["pruning"]`` is the record
+    of what was dropped (:meth:`~multipole.pruning.Pruning.to_dict`).
     """
-    key = (scene.digest, tuple(outputs) if outputs is not None else None)
+    key = (scene.digest, tuple(outputs) if outputs is not None else None, bool(prune))
     if key in _MODELS:
         return _MODELS[key]
     slot = _cache_slot(key)
     m = _restore(*slot) if slot is not None else None
     if m is None:
         start = time.perf_counter()
-        eq = equations(scene)
-        outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
+        eq, outs, record = pruned(scene, outputs, prune)
         m = compile_model(eq, outs)
+        m.meta["pruning"] = record.to_dict()
         m.compile_time = time.perf_counter() - start
         m.meta["warnings"] = _warning_lines(eq.analysis)
         if slot is not None:
@@ -168,11 +186,12 @@ def _store(path: Path, secret: bytes, m: Model) -> None:
 
 
 def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None, progress=None,
-        outputs=None, backend=None) -> Result:
+        outputs=None, backend=None, prune: bool = True) -> Result:
     """Simulate with the scene's ``simulate`` options, overridden by the arguments given.
 
     ``backend`` (default: the scene's ``simulate.backend``, else ``numpy``) selects how the model
-    runs; see :mod:`multipole.backends`.
+    runs; see :mod:`multipole.backends`.  ``prune`` (default True) computes only what the outputs
+    need (:func:`pruned`); ``result.stats["states_pruned"]`` says how many states were dropped.
     """
     opts = dict(scene.simulate)
     if t_end is not None and dt_out is None and opts.get("dt_out", 0.0) > t_end:
@@ -187,18 +206,21 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
     backend = backend or opts.get("backend", "numpy")
     if backend != "numpy":
         from .backends import get_backend
-        eq = equations(scene)
+        eq, outs, record = pruned(scene, outputs, prune)
         _warn(_warning_lines(eq.analysis))
-        outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
-        return get_backend(backend)(eq, outs, opts["t_end"], opts.get("dt_out"),
-                                    opts.get("solver", "auto"), opts.get("rtol", 1e-6), opts.get("atol", 1e-9),
-                                    opts.get("max_step", float("inf")), progress)
-    m = model(scene, outputs)
+        result = get_backend(backend)(eq, outs, opts["t_end"], opts.get("dt_out"),
+                                      opts.get("solver", "auto"), opts.get("rtol", 1e-6), opts.get("atol", 1e-9),
+                                      opts.get("max_step", float("inf")), progress)
+        result.stats["states_pruned"] = record.states_pruned
+        return result
+    m = model(scene, outputs, prune)
     _warn(m.meta.get("warnings", []))
     result = simulate(m, opts["t_end"], opts.get("dt_out"), opts.get("solver", "auto"), opts.get("rtol", 1e-6),
                       opts.get("atol", 1e-9), opts.get("max_step", float("inf")), progress=progress)
     result.stats["compile_time"] = m.compile_time
     result.stats["model_cached"] = m.cached
+    pruned_states = m.meta.get("pruning", {}).get("states_pruned", 0)
+    result.stats["states_pruned"] = pruned_states if isinstance(pruned_states, int) else 0
     return result
 
 
@@ -214,4 +236,4 @@ def _warn(lines) -> None:
         warnings.warn(line, MultipoleWarning, stacklevel=3)
 
 
-__all__ = ["check", "equations", "model", "run", "IllPosedError"]
+__all__ = ["check", "equations", "pruned", "model", "run", "IllPosedError"]

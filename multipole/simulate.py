@@ -103,6 +103,8 @@ class Result:
             parts.append(f"compile {s['compile_time']:.3g} s")
         if s.get("newton_solves"):
             parts.append(f"newton {s['newton_iterations']} it / {s['newton_solves']} solves")
+        if s.get("states_pruned"):
+            parts.append(f"{s['states_pruned']} state(s) pruned (no output needs them)")
         return ", ".join(parts)
 
     def plot(self, path=None, title: str = ""):

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import MTF, Closure, I, Network, Param, Quantity, Se, element, junction_b
+from multipole import MTF, Closure, I, Network, Param, Quantity, Se, Sketch, element, junction_b
 
 _cos, _sin = sp.cos, sp.sin
 
@@ -150,7 +150,8 @@ def DAN(l, phi0, omega0, xs, ys, m, J, gx, gy, x1, y1):
                    bundles={"a": "planar", "b": "planar"},
                    positions={"b.x": xa + _S("l") * _cos(ph), "b.y": ya + _S("l") * _sin(ph), "b.phi": ph},
                    reads={"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1"))},
-                   fixed=("a.x", "a.y", "a.phi"))
+                   fixed=("a.x", "a.y", "a.phi"),
+                   sketch=[Sketch([(xa, ya), (xa + _S("l") * _cos(ph), ya + _S("l") * _sin(ph))], ["P1", "P"])])
 
 
 @element("DDD", "VDI 2729 dyad with three revolute joints: link 1 (P1-P) and link 2 (P2-P) hinged at the anchors "
@@ -226,4 +227,6 @@ def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
                    positions={"b1.x": xa1, "b1.y": ya1, "b1.phi": p1, "b2.x": xa2, "b2.y": ya2, "b2.phi": p2},
                    reads={"xa1": ("a1.x", _S("x1")), "ya1": ("a1.y", _S("y1")),
                           "xa2": ("a2.x", _S("x2")), "ya2": ("a2.y", _S("y2"))},
-                   fixed=("a1.x", "a1.y", "a1.phi", "a2.x", "a2.y", "a2.phi"), closures=[closure])
+                   fixed=("a1.x", "a1.y", "a1.phi", "a2.x", "a2.y", "a2.phi"), closures=[closure],
+                   sketch=[Sketch([(xa1, ya1), (xa1 + L1 * _cos(p1), ya1 + L1 * _sin(p1))], ["", "P"]),
+                           Sketch([(xa2, ya2), (xa2 + L2 * _cos(p2), ya2 + L2 * _sin(p2))], ["P2", ""])])

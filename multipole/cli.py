@@ -266,6 +266,11 @@ def main(argv=None) -> int:
     p.add_argument("-o", "--output", required=True, help="figure (png, svg, pdf)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE")
     p.set_defaults(func=_lazy("diagram", "cmd_diagram"))
+    p = sub.add_parser("draw", help="the moving geometry (a linkage) at chosen instants, its paths, transfer "
+                       "functions and an animation (docs/linkages.md)")
+    from .drawing import add_arguments as draw_arguments
+    draw_arguments(p)
+    p.set_defaults(func=_lazy("drawing", "cmd_draw"))
     p = sub.add_parser("linearize", help="linear state-space model (python-control), eigenfrequencies, Bode plot")
     p.add_argument("file")
     p.add_argument("--bode", help="figure for the Bode plot")

@@ -75,6 +75,21 @@ class PositionProblem:
     detail: str = ""
 
 
+@dataclass
+class Sketch:
+    """A piece of an element's drawing (``multipole draw``): a polyline through points ``(x, y)``
+    [m], expressions in the network's local names (parameters, signals, position reads).
+
+    ``style``: ``link`` (a bar with joints at its ends), ``slide`` (a guide line), ``point``.
+    ``labels``: a text per point ('' for none).  ``trace``: draw the path of the last point over the
+    whole run (a coupler curve)."""
+
+    points: list
+    labels: list = field(default_factory=list)
+    style: str = "link"
+    trace: bool = False
+
+
 def expand_connection(conn, children) -> list:
     """The component connections of a connection entry: an entry joining bundle ports (``[crank.out,
     coupler.a]``) becomes one entry per component (``[crank.out.x, coupler.a.x]``, …); an entry of
@@ -134,7 +149,7 @@ class Network:
 
     def __init__(self, kind: str, children: dict, connections=(), ports=None, params=None,
                  quantities=None, body: str | None = None, doc: str = "", prefer_state=None, signals=None,
-                 bundles=None, positions=None, reads=None, fixed=(), closures=()):
+                 bundles=None, positions=None, reads=None, fixed=(), closures=(), sketch=()):
         self.kind = kind
         self.children = dict(children)
         self.connections = [part for c in connections for part in expand_connection(list(c), self.children)]
@@ -150,6 +165,7 @@ class Network:
         self.reads = dict(reads or {})
         self.fixed = list(fixed)
         self.closures = list(closures)
+        self.sketch = list(sketch)
         for name, kind in self.bundles.items():
             missing = [p for p in bundle(kind).ports(name) if p not in self.ports]
             if missing:
@@ -229,6 +245,7 @@ class FlatNetwork:
     external_ports: dict = field(default_factory=dict)  # "elem.port" -> primitive port path
     prefer_state: list = field(default_factory=list)
     closures: list = field(default_factory=list)        # (state symbols, residual expressions, owner)
+    sketches: list = field(default_factory=list)        # (owner, Sketch, [(x, y) global expressions])
     conditions: list = field(default_factory=list)      # (expr >= 0 at t = 0, text, unit, owner)
     guards: list = field(default_factory=list)          # (expr, threshold, text, owner)
     bundles: dict = field(default_factory=dict)         # "elem.port" of a bundle -> bundle kind
@@ -372,6 +389,9 @@ class _Flattener:
                 (self.resolve(expr, scope, f"{where} position {port}"), where)
         self.fixed |= {self.port_path(net, path, net.ports[port]) for port in net.fixed}
         for c in net.closures:
+        for sk in net.sketch:
+            pts = [tuple(self.resolve(v, scope, f"{where} sketch") for v in pt) for pt in sk.points]
+            self.flat.sketches.append((where, sk, pts))
             states = [var(self.state_path(net, path, ref)) for ref in c.states]
             residuals = [self.resolve(r, scope, f"{where} closure") for r in c.residuals]
             self.flat.closures.append((states, residuals, where))
@@ -508,6 +528,8 @@ class _Flattener:
         initial = {s.symbol: s.initial for s in fl.states}
         for _ in range(len(initial) + 1):
             changed = False
+        fl.sketches = [(o, sk, [tuple(sp.sympify(v).xreplace(resolved) for v in pt) for pt in pts])
+                       for o, sk, pts in fl.sketches]
             for s in fl.states:
                 deps = s.initial.free_symbols & initial.keys()
                 if deps:
@@ -597,3 +619,7 @@ def flatten(root: Network) -> FlatNetwork:
     fl.terminate()
     fl.resolve_positions()
     return fl.flat
+    for k, (owner, _sk, pts) in enumerate(fl.flat.sketches):      # drawable as outputs (multipole.drawing)
+        for j, (x, y) in enumerate(pts):
+            fl.flat.quantities[f"{owner}.sketch{k}.{j}.x"] = (x, "m", "drawing point x")
+            fl.flat.quantities[f"{owner}.sketch{k}.{j}.y"] = (y, "m", "drawing point y")

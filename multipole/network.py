@@ -388,10 +388,10 @@ class _Flattener:
             self.positions[self.port_path(net, path, net.ports[port])] = \
                 (self.resolve(expr, scope, f"{where} position {port}"), where)
         self.fixed |= {self.port_path(net, path, net.ports[port]) for port in net.fixed}
-        for c in net.closures:
         for sk in net.sketch:
             pts = [tuple(self.resolve(v, scope, f"{where} sketch") for v in pt) for pt in sk.points]
             self.flat.sketches.append((where, sk, pts))
+        for c in net.closures:
             states = [var(self.state_path(net, path, ref)) for ref in c.states]
             residuals = [self.resolve(r, scope, f"{where} closure") for r in c.residuals]
             self.flat.closures.append((states, residuals, where))
@@ -522,14 +522,14 @@ class _Flattener:
                 eq.expr = eq.expr.xreplace(resolved)
         fl.closures = [(st, [sp.sympify(r).xreplace(resolved) for r in res], owner) for st, res, owner in fl.closures]
         fl.quantities = {k: (sp.sympify(e).xreplace(resolved), u, d) for k, (e, u, d) in fl.quantities.items()}
+        fl.sketches = [(o, sk, [tuple(sp.sympify(v).xreplace(resolved) for v in pt) for pt in pts])
+                       for o, sk, pts in fl.sketches]
         for s in fl.states:
             s.rhs = sp.sympify(s.rhs).xreplace(resolved)
             s.initial = sp.sympify(s.initial).xreplace(resolved)
         initial = {s.symbol: s.initial for s in fl.states}
         for _ in range(len(initial) + 1):
             changed = False
-        fl.sketches = [(o, sk, [tuple(sp.sympify(v).xreplace(resolved) for v in pt) for pt in pts])
-                       for o, sk, pts in fl.sketches]
             for s in fl.states:
                 deps = s.initial.free_symbols & initial.keys()
                 if deps:
@@ -618,8 +618,8 @@ def flatten(root: Network) -> FlatNetwork:
             fl.flat.external_ports[f"{name}.{port}"] = fl.port_path(root, "", f"{name}.{port}")
     fl.terminate()
     fl.resolve_positions()
-    return fl.flat
     for k, (owner, _sk, pts) in enumerate(fl.flat.sketches):      # drawable as outputs (multipole.drawing)
         for j, (x, y) in enumerate(pts):
             fl.flat.quantities[f"{owner}.sketch{k}.{j}.x"] = (x, "m", "drawing point x")
             fl.flat.quantities[f"{owner}.sketch{k}.{j}.y"] = (y, "m", "drawing point y")
+    return fl.flat

@@ -290,6 +290,11 @@ def main(argv=None) -> int:
     p.add_argument("type", nargs="?")
     p.add_argument("--markdown", action="store_true", help="the whole catalogue as a markdown reference")
     p.set_defaults(func=cmd_elements)
+    p = sub.add_parser("export", help="FMI 2.0 Model Exchange FMU, compiled with the C compiler found (docs/fmu.md)")
+    p.add_argument("file")
+    p.add_argument("--fmu", required=True, help="the FMU to write (.fmu)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE")
+    p.set_defaults(func=_lazy("fmu", "cmd_export"))
     args = parser.parse_args(argv)
     shown = warnings.showwarning
     warnings.showwarning = _show_warning

@@ -60,7 +60,7 @@ ROW_STATS = ("solver", "steps", "rejected", "nfev", "njev", "nlu", "events", "wa
 #: the columns every row has after the parameters and the metrics
 STATUS_COLUMNS = ("status", "diagnostic")
 
-_NUMBER_KINDS = ("number", "time")      # element parameter kinds a study may make runtime values
+_NUMBER_KINDS = ("number", "time", "law")    # element parameter kinds a study may make runtime values
 _DIST = re.compile(r"^\s*(normal|uniform)\s*\((.*)\)\s*$", re.S)
 _RANGE = re.compile(r"^(.+?)\.\.(.+?)(?::(lin|log):(\d+))?$", re.S)
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -438,6 +438,8 @@ def _dask_client(scheduler: str | None, workers: int, timeout: float):
                              "write the address as tcp://host:8786", "command line") from None
         n = max(1, sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()))
         return client, [client], n
+    import logging
+    logging.getLogger("distributed").setLevel(logging.ERROR)   # its shutdown notes are not the user's concern
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
     client = Client(cluster, timeout=timeout)
     return client, [client, cluster], workers
@@ -588,15 +590,24 @@ class Study:
             if "." in n:                 # an element parameter becomes a scene parameter of the study
                 syn = _synthetic(n, taken)
                 element, _, pname = n.partition(".")
-                written = self.overrides.get(n, self.base.element_values.get(element, {}).get(pname))
-                default = self._params[n].default
-                extra[syn] = written if written is not None else (default if isinstance(default, (int, float)) else 0.0)
+                # a number (a formula or a bare name would make the added parameter an alias that
+                # the flattening resolves away): the first of the group's values the element accepts
+                values = [float(self.points[k][n]) for k in group.runs]
+                extra[syn] = next((v for v in values if not self._params[n].problem(v)), values[0])
                 overrides[n] = syn
                 symbol_of[n] = syn
             else:
                 symbol_of[n] = n
         try:
-            scene = load(self.path, overrides, extra)
+            try:
+                scene = load(self.path, overrides, extra)
+            except MultipoleError:
+                if any("." in n for n in runtime):
+                    for n in runtime:    # an element that needs a number: vary it as a structural value
+                        if "." in n:
+                            self.kinds[n] = "structural"
+                    raise _Replan() from None
+                raise
             eq = pipeline.equations(scene)
             by_name = {str(p): p for p in eq.params}
             missing = [n for n in runtime if symbol_of[n] not in by_name]
@@ -777,8 +788,12 @@ class Study:
         scatter coloured by the metric for a sampled design), or the metric against each parameter
         (more); failed runs are marked with red crosses.  ``overlay(ax)`` may draw on the axes."""
         import matplotlib.pyplot as plt
+        from matplotlib.colors import LogNorm
         from .files import atomic_output
         metric = metric or self.metrics[0].name
+        if metric not in {m.name for m in self.metrics}:
+            raise SweepError("unknown_metric", f"--plot-metric {metric!r} is not a metric of the study",
+                             f"one of {', '.join(m.name for m in self.metrics)}", "command line")
         ok = [r for r in self.rows if r["status"] == "ok"]
         bad = [r for r in self.rows if r["status"] != "ok"]
         numeric = [s for s in self.specs if s.numeric]
@@ -788,14 +803,18 @@ class Study:
         if len(numeric) == 2 and len(self.specs) == 2:
             a, b = numeric
             fig, ax = plt.subplots(figsize=(7, 5.2))
-            if not a.random and not b.random and len(self.rows) == len(self.points):
+            finite = y[np.isfinite(y)]
+            log_colour = len(finite) > 0 and finite.min() > 0 and finite.max() > 1e3 * finite.min()
+            norm = LogNorm() if log_colour else None
+            if not a.random and not b.random:
                 grid = np.full((len(b.values), len(a.values)), np.nan)
                 for r in ok:
                     grid[b.values.index(r[b.name]), a.values.index(r[a.name])] = r[metric]
-                mesh = ax.pcolormesh(_edges(a), _edges(b), grid, shading="flat", cmap="viridis")
+                mesh = ax.pcolormesh(_edges(a), _edges(b), grid, shading="flat", cmap="viridis", norm=norm)
             else:
-                mesh = ax.scatter([r[a.name] for r in ok], [r[b.name] for r in ok], c=y, s=14, cmap="viridis")
-            fig.colorbar(mesh, ax=ax, label=metric)
+                mesh = ax.scatter([r[a.name] for r in ok], [r[b.name] for r in ok], c=y, s=14, cmap="viridis",
+                                  norm=norm)
+            fig.colorbar(mesh, ax=ax, label=metric + (" (log scale)" if log_colour else ""))
             if bad:
                 ax.plot([r[a.name] for r in bad], [r[b.name] for r in bad], "rx", ms=5, label="failed run")
                 ax.legend(loc="upper right")
@@ -958,6 +977,9 @@ def cmd_sweep(args) -> int:
         raise SweepError("bad_design", "--seed needs --samples N", "add --samples N", "command line")
     study = Study(args.file, _sets(args.set), metrics, args.samples, args.seed, {}, args.t_end, args.dt_out,
                   args.solver, args.rtol, args.atol, args.settle_tol)
+    if args.plot_metric and args.plot_metric not in {m.name for m in study.metrics}:
+        raise SweepError("unknown_metric", f"--plot-metric {args.plot_metric!r} is not a metric of the study",
+                         f"one of {', '.join(m.name for m in study.metrics)}", "command line")
     n = len(study.points)
     if n > args.confirm and not args.yes:
         raise SweepError("too_many_runs", f"the study has {n} runs, more than {args.confirm} (--confirm)",

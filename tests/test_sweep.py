@@ -1,0 +1,339 @@
+"""Parameter studies (multipole/sweep.py, docs/sweeps.md): SPECs, designs, metrics against closed
+forms, runtime parameters against the oscillator's analytic solution, failed runs as rows, the
+same table (bit for bit) on every executor, and the command line's errors."""
+from __future__ import annotations
+
+import csv
+import math
+import textwrap
+
+import numpy as np
+import pytest
+
+from multipole.cli import main
+from multipole.errors import MultipoleError
+from multipole.netlist import loads
+from multipole.sweep import (SerialExecutor, Study, _Executor, design, make_executor, parse_spec,
+                             reduce_output, sweep)
+
+# A mass on a spring started at x0: q(t) = x0*cos(w*t), w = sqrt(c/m).  ``c`` is computed from the
+# scene parameter ``k`` (c2 = 2*k), so a study of k also tests that dependent parameters follow.
+OSCILLATOR = textwrap.dedent("""\
+    name: oscillator
+    parameters: {k: 2.0, c2: "2*k", x0: 0.1, mm: 1.0}
+    elements:
+      body:   {type: mass, m: mm}
+      spring: {type: spring, c: c2, x0: x0, domain: translational}
+      wall:   {type: ground, domain: translational}
+    connections:
+      - [wall.p, spring.a]
+      - [spring.b, body.a]
+    outputs: [spring.deflection, body.v]
+    metrics:
+      peak_to_peak: "spring.deflection.max - spring.deflection.min"
+      energy_end: "0.5*body.v.final**2"
+    simulate: {t_end: 1.0, dt_out: 0.01, solver: DOP853, rtol: 1.0e-10, atol: 1.0e-13}
+    """)
+RTOL = 1e-10
+
+
+@pytest.fixture
+def oscillator(tmp_path):
+    path = tmp_path / "oscillator.yaml"
+    path.write_text(OSCILLATOR)
+    return path
+
+
+def _q(t, c, m, x0=0.1):
+    """The oscillator's deflection: the spring is stretched by x0 at t = 0 and the mass starts at rest."""
+    return x0 * np.cos(np.sqrt(c / m) * t)
+
+
+# -- SPECs ------------------------------------------------------------------------------------------
+def test_spec_list_range_and_distributions():
+    assert parse_spec("c", "1e7,2e7").values == (1e7, 2e7)
+    lin = parse_spec("d", "0..1:lin:11")
+    assert lin.kind == "range" and len(lin.values) == 11
+    np.testing.assert_allclose(lin.values, [k / 10 for k in range(11)], rtol=0, atol=1e-15)
+    log = parse_spec("c", "1..1000:log:4")
+    np.testing.assert_allclose(log.values, [1.0, 10.0, 100.0, 1000.0], rtol=1e-14)
+    assert log.scale == "log"
+    assert parse_spec("c", "normal(2e8, 1e7)").args == (2e8, 1e7)
+    assert parse_spec("c", "uniform(1, 2)").args == (1.0, 2.0)
+    assert parse_spec("w", "2*pi, 4*pi").values == pytest.approx((2 * math.pi, 4 * math.pi), rel=1e-15)
+    assert parse_spec("mesh.level", "ideal,elastic").values == ("ideal", "elastic")
+
+
+@pytest.mark.parametrize("text", ["1..2", "1..2:cubic:3", "0..1:log:3", "1..2:lin:0", "normal(1)",
+                                  "normal(1, -1)", "uniform(2, 1)", "1e7,,2e7", "__import__('os')",
+                                  "2**", "1..x:lin:3", "", "exp(1000)..1:lin:2", "normal(a, 1)"])
+def test_malformed_specs_are_bad_spec(text):
+    with pytest.raises(MultipoleError) as exc:
+        parse_spec("c", text)
+    assert exc.value.code == "bad_spec"
+    assert exc.value.exit_code == 2
+
+
+def test_grid_rows_first_parameter_slowest():
+    rows = design([parse_spec("a", "1,2"), parse_spec("b", "10,20,30")])
+    assert rows == [{"a": 1.0, "b": 10.0}, {"a": 1.0, "b": 20.0}, {"a": 1.0, "b": 30.0},
+                    {"a": 2.0, "b": 10.0}, {"a": 2.0, "b": 20.0}, {"a": 2.0, "b": 30.0}]
+
+
+def test_grid_refuses_distributions():
+    with pytest.raises(MultipoleError) as exc:
+        design([parse_spec("a", "normal(1, 0.1)")])
+    assert exc.value.code == "bad_design"
+
+
+def test_samples_reproducible_with_seed():
+    specs = [parse_spec("a", "normal(5, 0.5)"), parse_spec("b", "uniform(2, 3)"), parse_spec("c", "1,2,3")]
+    first, again, other = design(specs, 400, 7), design(specs, 400, 7), design(specs, 400, 8)
+    assert first == again
+    assert first != other
+    a = np.array([r["a"] for r in first])
+    b = np.array([r["b"] for r in first])
+    assert abs(a.mean() - 5) < 5 * 0.5 / math.sqrt(400)          # five standard errors
+    assert b.min() >= 2 and b.max() < 3
+    assert {r["c"] for r in first} == {1.0, 2.0, 3.0}
+
+
+# -- metrics against closed forms -----------------------------------------------------------------
+def test_reductions_closed_forms():
+    t = np.linspace(0, 2 * np.pi, 20001)
+    y = np.sin(t)
+    h = t[1] - t[0]
+    assert reduce_output(t, y, "rms") == pytest.approx(1 / math.sqrt(2), abs=h ** 2)   # trapezoid error O(h²)
+    assert reduce_output(t, y, "mean") == pytest.approx(0.0, abs=h ** 2)
+    assert reduce_output(t, y, "max") == pytest.approx(1.0, abs=h ** 2)
+    assert reduce_output(t, y, "min") == pytest.approx(-1.0, abs=h ** 2)
+    assert reduce_output(t, y, "final") == y[-1]
+    tau = 0.5
+    t = np.linspace(0, 10, 10001)
+    step = 1 - np.exp(-t / tau)
+    # within 2 % of the total change from tau*ln(1/0.02) on, up to the grid and the final value's offset
+    expected = tau * math.log((1 - math.exp(-10 / tau)) / 0.02)
+    assert reduce_output(t, step, "settling") == pytest.approx(expected, abs=t[1] - t[0])
+
+
+def test_settling_nan_when_it_never_settles():
+    t = np.linspace(0, 10, 1001)
+    assert math.isnan(reduce_output(t, np.sin(5 * t) * t, "settling"))
+
+
+# -- studies --------------------------------------------------------------------------------------------
+def test_runtime_parameters_match_the_closed_form(oscillator):
+    """One compiled model, parameters set per run: every row's final deflection is the oscillator's
+    at its own k (through the dependent c2 = 2k) and its own body mass (an element parameter)."""
+    study = Study(oscillator, {"k": "1..50:log:4", "mm": "0.5,2"}, metrics=["spring.deflection.final",
+                                                                           "spring.deflection.max"])
+    rows = study.run(SerialExecutor())
+    assert len(study.groups) == 1 and study.kinds == {"k": "runtime", "mm": "runtime"}
+    assert len(rows) == 8 and all(r["status"] == "ok" for r in rows)
+    for r in rows:
+        expected = _q(1.0, 2 * r["k"], r["mm"])
+        assert r["spring.deflection.final"] == pytest.approx(expected, abs=1e-6 * 0.1)
+        assert r["spring.deflection.max"] == pytest.approx(0.1, abs=1e-9)   # at t = 0
+        assert 0 < r["nfev"] and r["steps"] >= 1
+
+
+def test_element_parameter_is_a_runtime_value(oscillator):
+    study = Study(oscillator, {"body.m": "0.5,1,4"}, metrics=["spring.deflection.final"])
+    rows = study.run(SerialExecutor())
+    assert study.kinds["body.m"] == "runtime" and len(study.groups) == 1
+    for r in rows:
+        assert r["spring.deflection.final"] == pytest.approx(_q(1.0, 4.0, r["body.m"]), abs=1e-7)
+
+
+def test_named_metrics_from_the_netlist(oscillator):
+    # w = 2*pi and 4*pi: the grid (dt 0.01) holds the half periods, so peak to peak is 2*x0, and
+    # after whole periods the mass is at rest again (energy 0)
+    study = Study(oscillator, {"k": [2 * math.pi ** 2, 8 * math.pi ** 2]}, metrics=["peak_to_peak", "energy_end"])
+    for r in study.run(SerialExecutor()):
+        assert r["peak_to_peak"] == pytest.approx(0.2, abs=1e-8)
+        assert r["energy_end"] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_structural_parameter_compiles_once_per_group(tmp_path):
+    path = tmp_path / "gear.yaml"
+    path.write_text(textwrap.dedent("""\
+        name: gear
+        parameters: {r1: 0.02, r2: 0.06}
+        elements:
+          motor:  {type: torque_source, value: "5*step(t)"}
+          pinion: {type: inertia, J: 1.0e-3}
+          mesh:   {type: spur_stage, r1: r1, r2: r2, level: elastic, c: 2.0e8}
+          wheel:  {type: inertia, J: 2.0e-2}
+        connections:
+          - [motor.p, pinion.a]
+          - [pinion.b, mesh.a]
+          - [mesh.b, wheel.a]
+        outputs: [wheel.omega]
+        simulate: {t_end: 0.01, dt_out: 1.0e-4, rtol: 1.0e-10, atol: 1.0e-12}
+        """))
+    study = Study(path, {"mesh.level": "ideal,elastic", "r2": "0.04,0.06"}, metrics=["wheel.omega.final"])
+    rows = study.run(SerialExecutor())
+    assert study.kinds == {"mesh.level": "structural", "r2": "runtime"}
+    assert len(study.groups) == 2
+    # level ideal refuses the mesh stiffness c: a group that cannot be built is rows with the
+    # loader's diagnostic, not a crashed study
+    assert [r["status"] for r in rows] == ["failed", "failed", "ok", "ok"]
+    assert all("bad_parameter" in r["diagnostic"] for r in rows[:2])
+    for r in rows[2:]:
+        # the mean speed after the torque step follows the total inertia seen at the wheel,
+        # omega_w = M*i*t/(J1*i² + J2), i = r2/r1; the elastic mesh adds a ringing of a few per cent
+        i = r["r2"] / 0.02
+        mean = 5 * i * 0.01 / (1e-3 * i ** 2 + 2e-2)
+        assert abs(r["wheel.omega.final"]) == pytest.approx(mean, rel=0.03)
+
+
+def test_failing_variant_is_a_row(oscillator):
+    """A zero mass (a scene parameter, so the loader cannot refuse it for the element) divides by
+    zero in the model: that run is a failed row with its diagnostic, the others are ok; a value the
+    element refuses (a negative mass given to body.m) is an invalid row."""
+    study = Study(oscillator, {"mm": "1,0,2"}, metrics=["spring.deflection.final"])
+    rows = study.run(SerialExecutor())
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok"]
+    assert rows[1]["diagnostic"].startswith("error[") and math.isnan(rows[1]["spring.deflection.final"])
+    assert study.failed == 1
+    rows = Study(oscillator, {"body.m": "1,-1"}, metrics=["spring.deflection.final"]).run(SerialExecutor())
+    assert [r["status"] for r in rows] == ["ok", "invalid"]
+    assert "bad_value" in rows[1]["diagnostic"]
+
+
+def test_unknown_parameter_and_metric(oscillator):
+    for name, code in (("nope", "unknown_parameter"), ("body.nope", "unknown_parameter"),
+                       ("nobody.m", "unknown_parameter")):
+        with pytest.raises(MultipoleError) as exc:
+            Study(oscillator, {name: "1,2"})
+        assert exc.value.code == code and exc.value.exit_code == 2
+    with pytest.raises(MultipoleError) as exc:
+        Study(oscillator, {"k": "1,2"}, metrics=["spring.deflection.median"])
+    assert exc.value.code == "unknown_metric"
+
+
+def test_interrupt_keeps_finished_rows(oscillator):
+    def progress(done, failed, total, eta):
+        if done >= 3:
+            raise KeyboardInterrupt
+    study = Study(oscillator, {"k": "1..10:lin:8"}, metrics=["spring.deflection.final"])
+    rows = study.run(SerialExecutor(), progress=progress, chunk=1)
+    assert study.interrupted
+    assert 3 <= len(rows) < 8 and [r["run"] for r in rows] == list(range(len(rows)))
+    for r in rows:
+        assert r["spring.deflection.final"] == pytest.approx(_q(1.0, 2 * r["k"], 1.0), abs=1e-7)
+
+
+def test_api_returns_a_dataframe(oscillator):
+    pd = pytest.importorskip("pandas")
+    df = sweep(oscillator, {"k": "1,2"}, metrics=["spring.deflection.final"], executor="serial")
+    assert isinstance(df, pd.DataFrame)
+    assert list(df.columns[:3]) == ["run", "k", "spring.deflection.final"]
+    assert list(df["status"]) == ["ok", "ok"]
+
+
+def _table(study):
+    names = [m.name for m in study.metrics]
+    return [(r["run"], r["status"], tuple(r[n] for n in names)) for r in study.rows]
+
+
+def _same(a, b):
+    """Bit for bit, NaN equal to NaN."""
+    return len(a) == len(b) and all(ra[:2] == rb[:2] and all(x == y or (math.isnan(x) and math.isnan(y))
+                                                            for x, y in zip(ra[2], rb[2])) for ra, rb in zip(a, b))
+
+
+def test_identical_tables_serial_process_dask(oscillator):
+    """The same study gives the same metrics, bit for bit, in this process, on a process pool and
+    on a real dask.distributed LocalCluster of two worker processes (a failing run included)."""
+    specs = {"k": "1..30:lin:5", "mm": "1,0,3"}
+    metrics = ["spring.deflection.final", "spring.deflection.rms", "peak_to_peak"]
+    serial = Study(oscillator, specs, metrics)
+    serial.run("serial")
+    process = Study(oscillator, specs, metrics)
+    process.run("process", workers=2, chunk=2)
+    assert _same(_table(serial), _table(process))
+    assert sum(r["status"] != "ok" for r in serial.rows) == 5
+    pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed (pip install multipole[cluster])")
+    from dask.distributed import Client, LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        dask = Study(oscillator, specs, metrics)
+        dask.run(_Executor(client.get_executor(), 2), chunk=3)
+    assert _same(_table(serial), _table(dask))
+    shuffled = Study(oscillator, specs, metrics)       # another chunking: still the same numbers
+    shuffled.run("serial", chunk=4)
+    assert _same(_table(serial), _table(shuffled))
+
+
+def test_unreachable_scheduler_is_a_clear_error():
+    pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed")
+    with pytest.raises(MultipoleError) as exc:
+        make_executor("dask", scheduler="tcp://127.0.0.1:9", timeout=1.0)
+    assert exc.value.code == "scheduler_unreachable"
+    assert "tcp://127.0.0.1:9" in exc.value.message
+
+
+# -- the netlist's metrics: section ----------------------------------------------------------------
+@pytest.mark.parametrize("section, code", [("metrics: [a]", "bad_metric"),
+                                           ("metrics: {2x: \"body.v.max\"}", "bad_metric"),
+                                           ("metrics: {m: \"wheel.v.max\"}", "unsafe_expression"),
+                                           ("metrics: {m: \"body.v.median\"}", "unknown_name"),
+                                           ("metrics: {m: \"__import__('os')\"}", "unsafe_expression")])
+def test_metrics_section_errors(section, code):
+    start, end = OSCILLATOR.index("metrics:"), OSCILLATOR.index("simulate:")
+    text = OSCILLATOR[:start] + section + "\n" + OSCILLATOR[end:]
+    with pytest.raises(MultipoleError) as exc:
+        loads(text, "m.yaml")
+    assert exc.value.code == code
+    assert "m.yaml:" in exc.value.where
+
+
+# -- command line ------------------------------------------------------------------------------------
+def test_cli_writes_table_figure_and_summary(oscillator, tmp_path, capsys):
+    out = tmp_path / "study"
+    code = main(["sweep", str(oscillator), "--set", "k=1,4", "--set", "mm=1,0", "--executor", "serial",
+                 "--metrics", "spring.deflection.final,peak_to_peak", "-o", str(out), "--quiet"])
+    assert code == 3                                      # some runs failed (mm = 0)
+    with open(out / "runs.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok", "failed"]
+    assert float(rows[2]["spring.deflection.final"]) == pytest.approx(_q(1.0, 8.0, 1.0), abs=1e-7)
+    assert (out / "figure.png").stat().st_size > 0 and (out / "summary.txt").exists()
+    assert "2 failed" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, code", [(["--set", "nope=1,2"], "unknown_parameter"),
+                                        (["--set", "k=1..2"], "bad_spec"),
+                                        (["--set", "k=normal(1, 0.1)"], "bad_design"),
+                                        (["--set", "k=1..2:lin:5", "--confirm", "4"], "too_many_runs"),
+                                        (["--set", "k=1,2", "--plot-metric", "x.max"], "unknown_metric"),
+                                        (["--set", "k=1,2", "--scheduler", "tcp://127.0.0.1:9"], "bad_option")])
+def test_cli_bad_input_exit_2(oscillator, tmp_path, capsys, argv, code):
+    assert main(["sweep", str(oscillator), "-o", str(tmp_path / "o"), "--quiet"] + argv) == 2
+    assert f"error[{code}]" in capsys.readouterr().err
+
+
+def test_cli_confirm_with_yes(oscillator, tmp_path):
+    assert main(["sweep", str(oscillator), "--set", "k=1..2:lin:5", "--confirm", "4", "--yes", "--executor",
+                 "serial", "-o", str(tmp_path / "o"), "--quiet"]) == 0
+
+
+def test_cli_samples_reproducible(oscillator, tmp_path):
+    tables = []
+    for k in range(2):
+        out = tmp_path / f"o{k}"
+        assert main(["sweep", str(oscillator), "--set", "k=uniform(1, 5)", "--samples", "4", "--seed", "3",
+                     "--executor", "serial", "--metrics", "spring.deflection.final", "-o", str(out), "--quiet"]) == 0
+        with open(out / "runs.csv") as fh:
+            tables.append([(r["k"], r["spring.deflection.final"]) for r in csv.DictReader(fh)])
+    assert tables[0] == tables[1] and len(tables[0]) == 4
+    for k, final in tables[0]:
+        assert float(final) == pytest.approx(_q(1.0, 2 * float(k), 1.0), abs=1e-7)
+
+
+def test_cli_unreachable_scheduler_exit_2(oscillator, tmp_path, capsys):
+    pytest.importorskip("dask.distributed", reason="dask[distributed] is not installed")
+    assert main(["sweep", str(oscillator), "--set", "k=1,2", "--executor", "dask", "--scheduler",
+                 "tcp://127.0.0.1:9", "--timeout", "1", "-o", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "error[scheduler_unreachable]" in capsys.readouterr().err

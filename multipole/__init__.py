@@ -21,6 +21,7 @@ from .codegen import Model, compile_model
 from .simulate import Result, simulate
 from .netlist import Scene, load, loads
 from . import pipeline
+from . import sweep    # a callable module: multipole.sweep(scene, {...}) runs a study
 
 __version__ = "0.1.0"
 
@@ -29,5 +30,5 @@ __all__ = [
     "Diagnostic", "BUNDLES", "Bundle", "DOMAINS", "Domain", "Closure", "Sketch", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "RunError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
     "GY", "I", "MTF", "R", "TF", "Primitive", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
-    "LAW_Q", "Model", "compile_model", "Result", "simulate", "Scene", "load", "loads", "pipeline",
+    "LAW_Q", "Model", "compile_model", "Result", "simulate", "Scene", "load", "loads", "pipeline", "sweep",
 ]

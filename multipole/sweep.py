@@ -775,12 +775,8 @@ class Study:
                     w.writerow([repr(r[c]) if isinstance(r[c], float) else r[c] for c in self.columns])
 
     def frame(self):
-        """The rows as a pandas DataFrame (``pip install multipole[sweep]``)."""
-        try:
-            import pandas as pd
-        except ImportError:
-            raise SweepError("missing_dependency", "the sweep table as a DataFrame needs pandas",
-                             'pip install "multipole[sweep]"') from None
+        """The rows as a pandas DataFrame (pandas is a dependency of multipole)."""
+        import pandas as pd
         return pd.DataFrame(self.rows, columns=self.columns)
 
     def figure(self, path, metric: str | None = None, overlay=None):
@@ -999,7 +995,7 @@ def cmd_sweep(args) -> int:
         import pyarrow  # noqa: F401 -- only to know whether Parquet can be written
         study.frame().to_parquet(out / "runs.parquet")
         written.append(out / "runs.parquet")
-    except (ImportError, MultipoleError):
+    except ImportError:
         pass
     if study.rows and any(r["status"] == "ok" for r in study.rows):
         study.figure(out / "figure.png", args.plot_metric)
@@ -1043,3 +1039,15 @@ def add_arguments(p) -> None:
     p.add_argument("--rtol", type=float)
     p.add_argument("--atol", type=float)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+class _CallableModule(type(sys)):
+    """This module, callable: ``multipole.sweep(scene, {...})`` is :func:`sweep`, while
+    ``multipole.sweep.Study`` and ``import multipole.sweep`` still reach the module (a function
+    of the same name in the package would hide the module from ``import multipole.sweep as s``)."""
+
+    def __call__(self, *args, **kwargs):
+        return sweep(*args, **kwargs)
+
+
+sys.modules[__name__].__class__ = _CallableModule

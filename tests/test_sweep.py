@@ -14,7 +14,7 @@ from multipole.cli import main
 from multipole.errors import MultipoleError
 from multipole.netlist import loads
 from multipole.sweep import (SerialExecutor, Study, _Executor, design, make_executor, parse_spec,
-                             reduce_output, sweep)
+                             reduce_output)
 
 # A mass on a spring started at x0: q(t) = x0*cos(w*t), w = sqrt(c/m).  ``c`` is computed from the
 # scene parameter ``k`` (c2 = 2*k), so a study of k also tests that dependent parameters follow.
@@ -225,8 +225,9 @@ def test_interrupt_keeps_finished_rows(oscillator):
 
 
 def test_api_returns_a_dataframe(oscillator):
-    pd = pytest.importorskip("pandas")
-    df = sweep(oscillator, {"k": "1,2"}, metrics=["spring.deflection.final"], executor="serial")
+    import multipole
+    import pandas as pd
+    df = multipole.sweep(oscillator, {"k": "1,2"}, metrics=["spring.deflection.final"], executor="serial")
     assert isinstance(df, pd.DataFrame)
     assert list(df.columns[:3]) == ["run", "k", "spring.deflection.final"]
     assert list(df["status"]) == ["ok", "ok"]

@@ -18,7 +18,8 @@ from .primitives import T, LAW_F, LAW_P, LAW_Q
 from .primitives import C, CField, GY, I, MTF, R, TF, Primitive, Se, Sf, Tap, junction_a, junction_b
 
 from .codegen import Model, compile_model
-from .simulate import Result, simulate
+from .simulate import Result, read_csv, simulate
+from .linearize import control_name, linearize_scene as linearize
 from .netlist import Scene, load, loads
 from . import pipeline
 from . import sweep    # a callable module: multipole.sweep(scene, {...}) runs a study
@@ -30,5 +31,5 @@ __all__ = [
     "Diagnostic", "BUNDLES", "Bundle", "DOMAINS", "Domain", "Closure", "Sketch", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "RunError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
     "GY", "I", "MTF", "R", "TF", "Primitive", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
-    "LAW_Q", "Model", "compile_model", "Result", "simulate", "Scene", "load", "loads", "pipeline", "sweep",
+    "LAW_Q", "Model", "compile_model", "Result", "read_csv", "simulate", "linearize", "control_name", "Scene", "load", "loads", "pipeline", "sweep",
 ]

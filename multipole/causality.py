@@ -143,6 +143,28 @@ class Analysis:
                      f"{len(self.states)} state(s)")
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        """One short line: the verdict, the counts of findings by severity and the states."""
+        counts = ", ".join(f"{sum(d.severity == s for d in self.diagnostics)} {s}(s)" for s in ("error", "warning"))
+        from .simulate import names_list
+        names = [s.name for s in self.states]
+        shown = names_list(names)
+        codes = sorted({d.code for d in self.diagnostics if d.severity == "error"})
+        return (f"<Analysis {'well-posed' if self.ok else 'NOT well-posed'}: {counts}"
+                + (f" ({', '.join(codes[:5])})" if codes else "") + f"; {len(names)} state(s): {shown or '-'}>")
+
+    def _repr_html_(self) -> str:
+        """The notebook view: the verdict, the states and every finding with its fix."""
+        from html import escape
+        rows = "".join(f"<tr><td>{escape(d.severity)}</td><td>{escape(d.code)}</td><td>{escape(d.message)}</td>"
+                       f"<td>{escape(d.fix)}</td></tr>" for d in self.diagnostics)
+        from .simulate import names_list
+        names = [s.name for s in self.states]
+        return (f"<div><b>{'well-posed' if self.ok else 'NOT well-posed'}</b>: {escape(repr(self)[10:-1])}"
+                f"<p>states ({len(names)}): {escape(names_list(names, 50))}</p>"
+                "<table><tr><th>severity</th><th>code</th><th>finding</th><th>fix</th></tr>"
+                f"{rows}</table></div>")
+
 
 # ---------------------------------------------------------------------------------------------
 # aliases
@@ -386,9 +408,11 @@ class _Analyser:
                 if s in self.values:
                     pt[s] = self.values[s]
                 elif s in states and not states[s].storage:
-                    q0 = float(sp.sympify(states[s].initial).xreplace(
+                    q0 = complex(sp.sympify(states[s].initial).xreplace(
                         {p: self.values[p] for p in self.values}))
-                    pt[s] = q0 + 2 * np.pi * k / self.n_samples + 0.1
+                    # a start value that is not real (a closure that cannot be assembled: the check
+                    # reports it as cannot_assemble) is sampled from its real part
+                    pt[s] = q0.real + 2 * np.pi * k / self.n_samples + 0.1
                 else:
                     pt[s] = float(self.rng.normal())
             pts.append({k: sp.Float(v) for k, v in pt.items()})

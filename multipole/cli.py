@@ -274,6 +274,8 @@ def main(argv=None) -> int:
     p = sub.add_parser("linearize", help="linear state-space model (python-control), eigenfrequencies, Bode plot")
     p.add_argument("file")
     p.add_argument("--bode", help="figure for the Bode plot")
+    p.add_argument("--at", type=float, metavar="T", help="linearise about the state simulated at time T [s] "
+                   "(default: t = 0, the initial state)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE")
     p.set_defaults(func=_lazy("linearize", "cmd_linearize"))
     p = sub.add_parser("bench", help="speed against error: work-precision reports")

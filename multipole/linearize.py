@@ -10,7 +10,7 @@ eigenvalues with their natural frequencies [Hz] and damping ratios.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
@@ -31,13 +31,19 @@ class Linearization:
     states: list
     inputs: list
     outputs: list
+    units: dict = field(default_factory=dict)     # input, output or state name -> SI unit
+    name: str = ""                                # the scene's
+    point: str = "at t = 0 about the initial state"
 
     def statespace(self):
+        """A :class:`control.StateSpace` named after the scene, with the scene's state names and
+        its input and output names written by :func:`control_name` (python-control reserves the dot
+        for ``system.signal`` in :func:`control.interconnect`)."""
         import control
-        def clean(names):          # python-control refuses dots in signal names
-            return [n.replace(".", "_") for n in names]
-        return control.ss(self.A, self.B, self.C, self.D, states=clean(self.states), inputs=clean(self.inputs),
-                          outputs=clean(self.outputs))
+        return control.ss(self.A, self.B, self.C, self.D, states=list(self.states),
+                          inputs=[control_name(n) for n in self.inputs],
+                          outputs=[control_name(n) for n in self.outputs],
+                          name=control_name(self.name).replace(":", "_") or None)
 
     def modes(self) -> list[tuple[complex, float, float]]:
         """(eigenvalue [1/s], natural frequency [Hz], damping ratio) sorted by frequency.
@@ -154,43 +160,137 @@ def numeric_jacobians(eq: Equations, outputs, t: float = 0.0, x=None):
     return F[:, :n], F[:, n:], Y[:, :n], Y[:, n:]
 
 
-def cmd_linearize(args) -> int:
-    """CLI: print the state-space matrices and modes; optionally a Bode plot."""
+def control_name(name: str) -> str:
+    """A scene name as a python-control signal name: ``rotor.omega`` -> ``rotor:omega``.
+
+    python-control refuses a dot in an input or output name (``control.interconnect`` reads
+    ``sys.signal``), so the dot is written as a colon; nothing else changes, and element names (letters,
+    digits, ``_``) never contain a colon, so the mapping is one to one."""
+    return name.replace(".", ":")
+
+
+def driven_inputs(scene, eq: Equations) -> list:
+    """The inputs of ``eq`` that the netlist drives: the sources of an element whose type has a
+    parameter of kind ``time`` (a torque, speed, voltage or current source).  A ground or a reference
+    inside an element (a motor's internal 0 V) is a fixed value, not an input."""
+    from .catalogue import catalogue
+    from .simulate import element_of
+    types = catalogue()
+    out = []
+    for u in eq.inputs:
+        et = types.get(scene.element_types.get(element_of(u.name), ""))
+        if et is None or any(p.kind == "time" for p in et.params):
+            out.append(u)
+    return out
+
+
+def input_units(eq: Equations) -> dict:
+    """{input name: SI unit}: the effort or flow unit of the port its source imposes."""
+    flat = eq.analysis.flat
+    units = {}
+    for u in eq.inputs:
+        path = u.name.rsplit(".", 1)[0]
+        prim, dom = flat.primitives.get(path), flat.port_domains.get(f"{path}.p")
+        if prim is not None and dom is not None and getattr(prim, "variable", None) in ("e", "f"):
+            units[u.name] = dom.effort_unit if prim.variable == "e" else dom.flow_unit
+    return units
+
+
+def operating_point(scene, eq: Equations, at=None) -> tuple[float, list, str]:
+    """``(t, x, text)``: the time [s] and state of the operating point ``at`` and its description.
+
+    ``at`` is None (t = 0 and the initial state), a time [s] (the state the scene's simulation
+    reaches at that time, with its ``simulate`` options) or a mapping ``{state name: value}`` (SI),
+    optionally with ``"t"``; states it does not name keep their initial values."""
+    x0 = eq.initial_values()
+    if at is None:
+        return 0.0, x0, "at t = 0 about the initial state"
+    if isinstance(at, dict):
+        unknown = sorted(set(at) - set(eq.state_names) - {"t"})
+        if unknown:
+            raise MultipoleError("unknown_state", f"operating point: {', '.join(unknown)} is not a state",
+                                 f"states: {', '.join(eq.state_names)}", scene.path)
+        t = float(at.get("t", 0.0))
+        return t, [float(at.get(n, v)) for n, v in zip(eq.state_names, x0)], f"at t = {t:g} s about the given state"
+    if isinstance(at, (int, float)) and not isinstance(at, bool) and np.isfinite(at) and at >= 0:
+        if at == 0:
+            return 0.0, x0, "at t = 0 about the initial state"
+        from . import pipeline
+        result = pipeline.run(scene, t_end=float(at), progress=False)
+        return float(at), list(result.states[-1]), f"at t = {at:g} s about the simulated state"
+    raise MultipoleError("bad_operating_point", f"operating point at={at!r} is not a time or a mapping of states",
+                         "at=None (t = 0), at=0.5 (the state simulated at 0.5 s) or at={'rotor.p': 0.1}",
+                         scene.path)
+
+
+def scene_linearization(scene, at=None, outputs=None) -> Linearization:
+    """The :class:`Linearization` of ``scene`` at the operating point ``at`` (see
+    :func:`operating_point`): inputs are the sources the netlist drives (:func:`driven_inputs`),
+    outputs the scene's (default, else its states).  A Jacobian that is infinite or undefined there is
+    a :class:`~multipole.errors.RunError` ``not_linearizable`` naming the element."""
     from . import pipeline
-    from .cli import FIGURE_FORMATS, _overrides, check_output_path
-    from .netlist import load
-    check_output_path(args.bode, FIGURE_FORMATS, "--bode")
-    scene = load(args.file, _overrides(args.set))
     eq = pipeline.equations(scene)
-    outputs = scene.outputs or eq.state_names
+    outputs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
+    for out in outputs:
+        eq.output(out)                     # an unknown name: one error naming it
+    t, x, text = operating_point(scene, eq, at)
     try:
-        lin = linearize(eq, outputs)
-        bad = [f"matrix {m} has infinite or NaN entries" for m in "ABCD" if not np.all(np.isfinite(getattr(lin, m)))]
+        A, B, C, D = numeric_jacobians(eq, outputs, t, x)
+        bad = [f"matrix {m} has infinite or NaN entries" for m, M in zip("ABCD", (A, B, C, D))
+               if not np.all(np.isfinite(M))]
     except (TypeError, ValueError, ArithmeticError) as exc:    # sympy cannot evaluate a derivative there
         if isinstance(exc, MultipoleError):
             raise
         bad = [f"a derivative cannot be evaluated ({type(exc).__name__}: {str(exc).strip()[:100]})"]
     if bad:
-        raise _not_linearizable(scene, outputs, bad[0])
-    print(f"# {scene.name}: linearised at t = 0 about the initial state")
+        raise _not_linearizable(scene, outputs, bad[0], text)
+    inputs = list(eq.inputs)
+    keep = [inputs.index(u) for u in driven_inputs(scene, eq)]
+    units = {**{o: eq.units.get(o, "") for o in outputs}, **input_units(eq),
+             **{s.name: s.unit for s in eq.analysis.flat.states}}
+    return Linearization(A, B[:, keep], C, D[:, keep], list(eq.state_names), [inputs[k].name for k in keep],
+                         outputs, units, scene.name, text)
+
+
+def linearize_scene(scene, at=None, outputs=None):
+    """The scene linearised at ``at`` as a python-control ``StateSpace`` (``multipole.linearize``).
+
+    ``at``: None (t = 0, the initial state), a time [s] (the state the scene's own simulation reaches
+    then) or ``{state name: value}`` (SI, optionally ``"t"``).  Inputs are the sources the netlist
+    drives (grounds are not inputs), outputs the scene's ``outputs`` (or ``outputs`` given here), in
+    SI units; states are the scene's states (``rotor.p``).  Input and output names are the scene's
+    with the dot written as a colon (``rotor:omega``, :func:`control_name`), because python-control
+    reserves the dot for ``system.signal``; the system is named after the scene.  Raises
+    :class:`~multipole.errors.IllPosedError` for a scene the check refuses and
+    :class:`~multipole.errors.RunError` ``not_linearizable`` where the Jacobian is not finite."""
+    return scene_linearization(scene, at, outputs).statespace()
+
+
+def cmd_linearize(args) -> int:
+    """CLI: print the state-space matrices and modes; optionally a Bode plot."""
+    from .cli import FIGURE_FORMATS, _overrides, check_output_path
+    from .netlist import load
+    check_output_path(args.bode, FIGURE_FORMATS, "--bode")
+    scene = load(args.file, _overrides(args.set))
+    lin = scene_linearization(scene, getattr(args, "at", None))
+    print(f"# {scene.name}: linearised {lin.point}")
     print(lin.to_text())
     if args.bode:
-        from .files import atomic_output
-        with atomic_output(args.bode) as tmp:      # an interrupted write leaves no short figure behind
-            bode(lin, tmp, scene.name)
+        from .plotting import bode
+        bode(lin, args.bode, scene.name)            # written atomically
         print(f"wrote {args.bode}")
     return 0
 
 
-def _not_linearizable(scene, outputs, what: str) -> RunError:
+def _not_linearizable(scene, outputs, what: str, point: str = "at t = 0 about the initial state") -> RunError:
     """The error for a Jacobian that is infinite or undefined at the operating point (``log(f)``,
     ``1/f``, ``sqrt(f)`` or an ideal ``sign(f)`` law at f = 0, ``1/t`` at t = 0), naming the element
     where the compiled Jacobian fails."""
     from . import pipeline
     from .simulate import model_failure
-    err = RunError("not_linearizable", f"the linear model is infinite or undefined at t = 0 about the initial "
-                   f"state: {what}", "linearise where the laws are smooth: give the states initial values away "
-                   "from a kink or singularity (e.g. omega0), or regularise the law (tanh instead of sign)",
+    err = RunError("not_linearizable", f"the linear model is infinite or undefined {point}: {what}",
+                   "linearise where the laws are smooth: give the states initial values away from a kink or "
+                   "singularity (e.g. omega0), or regularise the law (tanh instead of sign)",
                    scene.path)
     try:
         model = pipeline.model(scene, outputs)
@@ -204,35 +304,3 @@ def _not_linearizable(scene, outputs, what: str) -> RunError:
     except MultipoleError:
         pass
     return err
-
-
-def bode(lin: Linearization, path, title=""):
-    """Magnitude and phase of every input -> output pair, saved to ``path``."""
-    import control
-    from matplotlib.figure import Figure      # no pyplot: the caller's backend is left alone
-    sys = lin.statespace()
-    modes = [m[1] for m in lin.modes() if m[1] > 0]
-    lo = min(modes) / 30 if modes else 0.01
-    hi = max(modes) * 30 if modes else 100.0
-    w = 2 * np.pi * np.logspace(np.log10(lo), np.log10(hi), 600)
-    fig = Figure(figsize=(8, 6))
-    ax_m, ax_p = fig.subplots(2, 1, sharex=True)
-    for i, u in enumerate(lin.inputs):
-        for k, y in enumerate(lin.outputs):
-            resp = control.frequency_response(sys[k, i], w)
-            mag, phase = np.abs(resp.complex).ravel(), np.unwrap(np.angle(resp.complex).ravel())
-            if not np.any(mag > 0):
-                continue
-            ax_m.loglog(w / (2 * np.pi), mag, label=f"{u} → {y}")
-            ax_p.semilogx(w / (2 * np.pi), np.degrees(phase))
-    for f in modes:
-        ax_m.axvline(f, color="0.7", lw=0.7, ls=":")
-    ax_m.set_ylabel("|G|")
-    ax_p.set_ylabel("phase [deg]")
-    ax_p.set_xlabel("frequency [Hz]")
-    ax_m.grid(which="both", alpha=0.3)
-    ax_p.grid(which="both", alpha=0.3)
-    ax_m.legend(fontsize=7)
-    fig.suptitle(f"{title}: Bode plot (dotted: natural frequencies)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)

@@ -84,11 +84,59 @@ class Result:
         raise KeyError(name)
 
     def to_csv(self, path) -> None:
-        """CSV: ``t`` then one column per output (DESIGN §6)."""
+        """CSV: ``t [s]`` then one column per output, headed ``name [unit]`` (``rotor.omega [rad/s]``;
+        the name alone where the unit is not known); :func:`read_csv` reads it back."""
         names = list(self.outputs)
         data = np.column_stack([self.t] + [self.outputs[n] for n in names])
+        header = [column_label("t", "s")] + [column_label(n, self.units.get(n, "")) for n in names]
         with atomic_output(path) as tmp:     # an interrupted write leaves no short file behind
-            np.savetxt(tmp, data, delimiter=",", header=",".join(["t"] + names), comments="", fmt="%.12g")
+            np.savetxt(tmp, data, delimiter=",", header=",".join(header), comments="", fmt="%.12g")
+
+    def to_pandas(self):
+        """A :class:`pandas.DataFrame`: index ``t`` [s], one column per output (SI values), the units
+        in ``df.attrs["units"]`` (``{"t": "s", "rotor.omega": "rad/s", ...}``)."""
+        import pandas as pd
+        df = pd.DataFrame({n: np.asarray(v) for n, v in self.outputs.items()}, index=pd.Index(self.t, name="t"))
+        df.attrs["units"] = {"t": "s", **{n: self.units.get(n, "") for n in self.outputs}}
+        return df
+
+    def to_xarray(self):
+        """An :class:`xarray.Dataset`: coordinate ``t`` [s], one variable per output, each with
+        ``attrs["units"]``.  Needs xarray (``pip install "multipole[xarray]"``)."""
+        try:
+            import xarray as xr
+        except ImportError:
+            raise MultipoleError("missing_package", "Result.to_xarray needs the xarray package, which is not "
+                                 "installed", 'pip install "multipole[xarray]" (or pip install xarray); '
+                                 "Result.to_pandas needs no extra package") from None
+        t = xr.DataArray(self.t, dims="t", attrs={"units": "s"})
+        return xr.Dataset({n: ("t", np.asarray(v), {"units": self.units.get(n, "")}) for n, v in self.outputs.items()},
+                          coords={"t": t})
+
+    def __repr__(self) -> str:
+        """One short line (a notebook shows it for ``result``): the time span, the outputs with
+        their units, the states, the solver and its counters."""
+        span = f"t = 0 … {_seconds(self.t[-1])}, {len(self.t)} samples" if len(self.t) else "no samples"
+        outs = names_list([column_label(n, self.units.get(n, "")) for n in self.outputs])
+        s = self.stats
+        return (f"<Result {span}; outputs {outs or '-'}; {len(self.state_names)} state(s); solver {self.solver}, "
+                f"{s.get('steps', 0)} steps, {len(self.events)} events"
+                + (f", {len(s['warnings'])} warning(s)" if s.get("warnings") else "") + ">")
+
+    def _repr_html_(self) -> str:
+        """The notebook view: outputs (unit, final, min, max), states, solver statistics, warnings."""
+        from html import escape
+        rows = "".join(f"<tr><td>{escape(n)}</td><td>{escape(self.units.get(n, ''))}</td><td>{v[-1]:.6g}</td>"
+                       f"<td>{np.min(v):.6g}</td><td>{np.max(v):.6g}</td></tr>"
+                       for n, v in self.outputs.items() if len(v))
+        span = f"t = 0 … {_seconds(self.t[-1])}, {len(self.t)} samples" if len(self.t) else "no samples"
+        notes = "".join(f"<li>{escape(w)}</li>" for w in self.stats.get("warnings", []))
+        return (f"<div><b>multipole Result</b>: {escape(span)}"
+                "<table><tr><th>output</th><th>unit</th><th>final</th><th>min</th><th>max</th></tr>"
+                f"{rows}</table>"
+                f"<p>states ({len(self.state_names)}): {escape(names_list(self.state_names, 20)) or '-'}</p>"
+                f"<p>{escape(self.summary())}</p>"
+                + (f"<p>warnings during the run:</p><ul>{notes}</ul>" if notes else "") + "</div>")
 
     def summary(self) -> str:
         s = self.stats
@@ -108,30 +156,48 @@ class Result:
         return ", ".join(parts)
 
     def plot(self, path=None, title: str = ""):
-        """One panel per output over time; saved to ``path`` when given (written atomically).
-        Returns the figure."""
-        import matplotlib.pyplot as plt
-        names = list(self.outputs) or self.state_names
-        n = len(names)
-        fig, axes = plt.subplots(n, 1, figsize=(8, 1.9 * n + 1.0), sharex=True, squeeze=False)
-        for ax, name in zip(axes[:, 0], names):
-            ax.plot(self.t, self[name], lw=1.4)
-            unit = self.units.get(name, "")
-            ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, rotation=0, ha="right", va="center", fontsize=9)
-            ax.grid(alpha=0.3)
-            for te, _ in self.events[:50]:
-                ax.axvline(te, color="0.6", lw=0.6, ls=":")
-        axes[-1, 0].set_xlabel("t [s]")
-        import textwrap
-        fig.suptitle(textwrap.fill(title or "simulation", 90), fontsize=10)
-        footer = textwrap.fill(self.summary(), 170)       # the solver's reason can be long: never cut
-        fig.text(0.99, 0.005, footer, ha="right", va="bottom", fontsize=6, color="0.35")
-        fig.tight_layout(rect=(0, 0.012 + 0.012 * footer.count("\n") + 0.01, 1, 1))
-        if path:
-            with atomic_output(path) as tmp:
-                fig.savefig(tmp, dpi=120, format=str(path).rsplit(".", 1)[-1].lower())
-            plt.close(fig)
-        return fig
+        """One panel per output over time (:func:`multipole.plotting.time_plot`); saved to ``path``
+        when given (written atomically).  Returns the figure."""
+        from .plotting import time_plot
+        return time_plot(self, path, title)
+
+
+def column_label(name: str, unit: str) -> str:
+    """A CSV column heading: ``rotor.omega [rad/s]``, or the name alone without a unit."""
+    return f"{name} [{unit}]" if unit else name
+
+
+def parse_column_label(label: str) -> tuple[str, str]:
+    """``(name, unit)`` of a heading written by :func:`column_label` (unit "" where none)."""
+    m = re.fullmatch(r"(.*?) \[([^\[\]]*)\]", label.strip())
+    return (m.group(1), m.group(2)) if m else (label.strip(), "")
+
+
+def read_csv(path):
+    """A results CSV written by ``simulate --out`` (or :meth:`Result.to_csv`) as a
+    :class:`pandas.DataFrame` shaped like :meth:`Result.to_pandas`: index ``t`` [s], one column per
+    output named without its unit, the units in ``df.attrs["units"]``."""
+    import pandas as pd
+    df = pd.read_csv(path)
+    labels = [parse_column_label(c) for c in df.columns]
+    df.columns = [name for name, _ in labels]
+    df = df.set_index(df.columns[0])
+    df.attrs["units"] = dict(labels)
+    return df
+
+
+def _seconds(t: float) -> str:
+    """A time with the unit that reads best: ``2 s``, ``250 ms``, ``40 µs``."""
+    from .plotting import time_unit
+    scale, unit = time_unit(t)
+    return f"{t / scale:.4g} {unit}"
+
+
+def names_list(names, most: int = 8) -> str:
+    """``a, b, c`` (for a short repr) — at most ``most`` names, then ``… (n more)``."""
+    names = list(names)
+    more = f", … ({len(names) - most} more)" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
 
 
 class _Progress:
@@ -241,10 +307,12 @@ def rk_stability_radius(method: str, angle: float) -> float:
 
 
 def _jacobian_product(model, n: int):
-    """``v -> J·v`` at (0, x0), O(nnz) per product, and what it uses."""
-    if n <= DENSE_JACOBIAN_STATES or not hasattr(model, "rhs"):
+    """``v -> J·v`` at (0, x0), O(nnz) per product, and what it uses: the generated sparse Jacobian
+    (any size), the dense one kept sparse (up to :data:`DENSE_JACOBIAN_STATES`), else differences."""
+    sparse = getattr(model, "jac_sparse", None)
+    if sparse is not None or n <= DENSE_JACOBIAN_STATES or not hasattr(model, "rhs"):
         from scipy.sparse import csr_array
-        J = csr_array(np.asarray(model.jac(0.0, model.x0), dtype=float))
+        J = sparse(0.0, model.x0) if sparse is not None else csr_array(np.asarray(model.jac(0.0, model.x0), dtype=float))
         return (lambda v: J @ v), "Jacobian products"
     x0 = np.asarray(model.x0, dtype=float)
     f0 = np.asarray(model.rhs(0.0, x0), dtype=float)
@@ -488,6 +556,7 @@ def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, 
     method, reason = plan
     schedule, sides = _time_switches(model, x, t_end)
     run = integrator.integrate(model, method, t_grid, x, schedule, sides, t_end, rtol, atol, max_step, bar)
+    _near_dead_centres(model, t_grid, run.states)
     bar.close()
     outs = sample_outputs(model, t_grid, run.states)
     run_time = time.perf_counter() - start
@@ -519,7 +588,8 @@ def _time_switches(model, x, t_end) -> tuple[list, np.ndarray]:
 _REASONS = {ZeroDivisionError: "division by zero", OverflowError: "overflow (a value beyond 1.8e308, "
             "e.g. exp of more than 709)", np.linalg.LinAlgError: "singular matrix in a linear loop"}
 _FUNCTIONS = {"rhs": "the right-hand side", "rhs_in_mode": "the right-hand side", "jac": "the Jacobian",
-              "jac_in_mode": "the Jacobian", "outputs": "the outputs", "switches": "the switching functions",
+              "jac_in_mode": "the Jacobian", "jac_sparse": "the Jacobian", "jac_in_mode_sparse": "the Jacobian",
+              "outputs": "the outputs", "switches": "the switching functions",
               "values": "the port values"}
 
 
@@ -607,6 +677,9 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
                 return inner
     where = where or function or "the model"
     when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
+    at_dead_centre = dead_centre(model, t, frames[0][0].f_locals.get("x"), where) if isinstance(t, (int, float)) else None
+    if at_dead_centre is not None:
+        return at_dead_centre
     if isinstance(exc, NewtonError):
         return _failed(model, "newton_failed", f"no solution{when} in {where} ({exc.message})", exc.fix, element)
     reason = next((r for cls, r in _REASONS.items() if isinstance(exc, cls)), None)
@@ -679,7 +752,7 @@ class ScipyIntegrator:
             t_bound = schedule[i_sched][0] if i_sched < len(schedule) else t_end
             kw = {"rtol": rtol, "atol": atol, "max_step": max_step}
             if solver in IMPLICIT:
-                kw["jac"] = model.jac_in_mode if model.n_switches else model.jac
+                kw["jac"] = jacobian_for(model, solver)
             g_sign = np.sign(np.array(model.switches(t, x), dtype=float))
             for k, sgn in forced.items():      # just past an event: the new side's sign
                 g_sign[k] = sgn
@@ -706,7 +779,7 @@ class ScipyIntegrator:
                     elif not np.all(np.isfinite(rhs(ode.t, ode.y))):
                         cause, element = locate_non_finite(model, ode.t, ode.y)
                         msg += f"; infinite or NaN: {cause}"
-                    raise step_failed(model, f"{solver} failed at t = {ode.t:.6g} s: {msg}", element)
+                    raise step_failed(model, f"{solver} failed at t = {ode.t:.6g} s: {msg}", element, (ode.t, ode.y))
                 stats["steps"] += 1
                 dense = _Dense(ode, stats)
                 t_stop = ode.t
@@ -744,10 +817,72 @@ class ScipyIntegrator:
 #: the numpy backend's integrator (the default of :func:`simulate`)
 SCIPY = ScipyIntegrator()
 
+#: scipy's methods that take a sparse Jacobian (they factorise it with ``splu``); LSODA and GL4 need a
+#: dense array
+SPARSE_JACOBIAN_SOLVERS = frozenset({"Radau", "BDF"})
 
-def step_failed(model, message: str, element: str | None = None) -> SimulationError:
-    """The error of an integrator that cannot take a step (every backend; exit code 3)."""
-    return _failed(model, "step_failed", message, "try solver auto or Radau, or tighter tolerances", element)
+
+def jacobian_for(model, solver: str):
+    """The Jacobian function the implicit ``solver`` is given: the model's sparse one (``jac_sparse``,
+    a large model, :data:`multipole.codegen.SPARSE_JACOBIAN_STATES`) where the method takes it
+    (:data:`SPARSE_JACOBIAN_SOLVERS`), else the dense ``jac``; the ``*_in_mode`` variant (switches
+    held on their sides) for a model with switches."""
+    if model.n_switches:
+        dense, sparse = model.jac_in_mode, getattr(model, "jac_sparse_in_mode", None)
+    else:
+        dense, sparse = model.jac, getattr(model, "jac_sparse", None)
+    return sparse if sparse is not None and solver in SPARSE_JACOBIAN_SOLVERS else dense
+
+
+def step_failed(model, message: str, element: str | None = None, state=None) -> SimulationError:
+    """The error of an integrator that cannot take a step (every backend; exit code 3); at a
+    closure's dead centre (``state = (t, x)`` where the step failed) the ``dead_centre`` error."""
+    found = dead_centre(model, *state, message) if state is not None else None
+    return found or _failed(model, "step_failed", message, "try solver auto or Radau, or tighter tolerances", element)
+
+
+def dead_centres(model, t: float, x) -> list:
+    """``(element, text, value, threshold)`` of every closure guard of ``model`` (see
+    :class:`multipole.network.Closure`) whose magnitude is below its threshold at (t, x)."""
+    fun, texts = getattr(model, "guards", None), getattr(model, "guard_text", [])
+    if fun is None or not texts or x is None:
+        return []
+    try:
+        with np.errstate(all="ignore"):
+            values = np.asarray(fun(float(t), np.asarray(x, dtype=float)), dtype=float)
+    except (ArithmeticError, ValueError, TypeError):
+        return []
+    return [(el, text, float(v), th) for (el, text, th), v in zip(texts, values) if abs(v) < th]
+
+
+def dead_centre(model, t: float, x, cause: str = "") -> SimulationError | None:
+    """The ``dead_centre`` error if a closure of ``model`` is at its dead centre at (t, x) (the run
+    failed there: ``cause`` says how), else None."""
+    found = dead_centres(model, t, x)
+    if not found:
+        return None
+    el, text, value, th = min(found, key=lambda f: abs(f[2]) / f[3])
+    return _failed(model, "dead_centre", f"{el} reached its dead centre at t = {float(t):.6g} s ({text} = {value:.3g}, "
+                   f"below {th:g}): its closure cannot be solved beyond it, so the run stops"
+                   + (f" ({cause.split(': ', 1)[-1]})" if cause else ""),
+                   f"the motion prescribed upstream of {el} pushes it through a position it cannot pass: drive "
+                   "the mechanism only over the range it can assemble (see the transfer function), or "
+                   f"drive it at {el} itself", el)
+
+
+def _near_dead_centres(model, t_grid, states) -> None:
+    """Warn (collected into ``Result.stats['warnings']``) about every closure that comes nearer its
+    dead centre than its guard's threshold at an output time of a run that went on."""
+    fun = getattr(model, "guards", None)
+    if fun is None or not getattr(model, "guard_text", []):
+        return
+    seen = set()
+    for t, x in zip(t_grid, states):
+        for el, text, value, th in dead_centres(model, t, x):
+            if el not in seen:
+                seen.add(el)
+                warnings.warn(f"{el} comes near its dead centre at t = {float(t):.6g} s ({text} = {value:.3g}, "
+                              f"below {th:g}): forces and rates there grow like 1/{text}", MultipoleWarning)
 
 
 def check_finite(t_grid, states, outs, state_names, output_names, model=None) -> None:

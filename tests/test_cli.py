@@ -41,7 +41,7 @@ def test_simulate_writes_csv_on_the_output_grid(tmp_path, capsys):
                  "--out", str(out), "--plot", str(png), "--quiet", "--set", "c_shaft=1000"])
     assert code == 0
     rows = list(csv.reader(out.open()))
-    assert rows[0] == ["t", "rotor.omega", "load.omega", "shaft.force"]
+    assert rows[0] == ["t [s]", "rotor.omega [rad/s]", "load.omega [rad/s]", "shaft.force [N*m]"]
     t = np.array([float(r[0]) for r in rows[1:]])
     assert np.allclose(t, np.linspace(0, 0.1, 11), atol=1e-12)
     assert png.stat().st_size > 10_000

@@ -109,6 +109,16 @@ def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0), angle=N
     return Network("link", children, connections, ports, signals=signals)
 
 
+#: |sine of the transmission angle| below which a dyad is reported at its dead centre during a run
+DEAD_CENTRE = 0.1
+
+def _drive_state(m, J) -> list:
+    """The momentum a drive keeps as a state when its mechanism is driven by a torque or a force:
+    the drive coordinate is regular through every position of the mechanism, a dependent link's
+    rate passes through zero at the dead centres of the drive (``prefer_state`` of the network)."""
+    return ["L.J.p"] if not _zero(J) else ["L.mx.p"] if not _zero(m) else []
+
+
 _PLANAR_DOC = "planar bundle (x, y [m], phi [rad]; Fx, Fy [N], T [N*m])"
 
 
@@ -150,7 +160,7 @@ def DAN(l, phi0, omega0, xs, ys, m, J, gx, gy, x1, y1):
                    bundles={"a": "planar", "b": "planar"},
                    positions={"b.x": xa + _S("l") * _cos(ph), "b.y": ya + _S("l") * _sin(ph), "b.phi": ph},
                    reads={"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1"))},
-                   fixed=("a.x", "a.y", "a.phi"),
+                   fixed=("a.x", "a.y", "a.phi"), prefer_state=_drive_state(m, J),
                    sketch=[Sketch([(xa, ya), (xa + _S("l") * _cos(ph), ya + _S("l") * _sin(ph))], ["P1", "P"])])
 
 

@@ -169,3 +169,16 @@ def test_units_are_read_as_si_base_units():
     assert fmu.base_units("m/s^2") == {"m": 1, "s": -2}
     assert fmu.base_units("Ohm") == {"kg": 1, "m": 2, "s": -3, "A": -2}
     assert fmu.base_units("N*m | N") is None and fmu.base_units("-") is None
+
+
+@needs_cc
+def test_set_gives_the_parameters_their_default_values(tmp_path, capsys):
+    import xml.etree.ElementTree as ET
+    path = tmp_path / "stiffer.fmu"
+    assert main(["export", str(DIAGRAMS / "drive_train.yaml"), "--fmu", str(path), "--set", "c_shaft=4000",
+                 "--set", "rotor.J=0.004"]) == 0
+    with zipfile.ZipFile(path) as zf:
+        root = ET.fromstring(zf.read("modelDescription.xml"))
+    start = {v.get("name"): v.find("Real").get("start") for v in root.iter("ScalarVariable")}
+    assert float(start["c_shaft"]) == 4000.0 and float(start["rotor.J"]) == 0.004
+    assert start["rotor.p"] is None          # computed from rotor.J and rotor.omega0 when initialisation ends

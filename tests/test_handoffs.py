@@ -236,3 +236,16 @@ def test_bode_has_one_column_per_unit_and_legends_off_the_curves(tmp_path):
     for legend in legends:
         box = legend.get_window_extent(renderer)
         assert not any(box.overlaps(ax.get_window_extent(renderer)) for ax in axes)
+
+
+def test_plot_without_a_file_is_a_pyplot_figure_for_the_notebook(drive_result):
+    """Without a path the figure is made by pyplot, so the user's backend (inline in a notebook)
+    shows it; the backend itself is not switched."""
+    import matplotlib
+    import matplotlib.pyplot as plt
+    backend = matplotlib.get_backend()
+    fig = drive_result.plot()
+    try:
+        assert fig.number in plt.get_fignums() and matplotlib.get_backend() == backend
+    finally:
+        plt.close(fig)

@@ -60,7 +60,7 @@ def _zero(value) -> bool:
     return isinstance(value, (int, float)) and value == 0
 
 
-def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0), angle=None, slide=None) -> Network:
+def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(None, None, None), angle=None, slide=None) -> Network:
     """A rigid link turning about its reference point A at the angle ``phi`` (the state ``K.q3``).
 
     ``points``: body-frame offsets ``(rx, ry)`` [m] of the joint points P1, P2, … from A (local
@@ -69,7 +69,8 @@ def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(0, 0, 0), angle=N
     ``w.<name>`` for each name in ``omega_ports`` (all at the link's angular velocity [rad/s]).
     ``m`` [kg] and ``J`` [kg*m^2] (about the centre of mass at ``(xs, ys)`` [m] in the body frame)
     are left out where they are the number 0; gravity ``(gx, gy)`` [m/s^2] acts on ``m``.
-    ``p0``: initial momenta of the x, y and rotational inertias [N*s, N*s, N*m*s].
+    ``p0``: initial momenta of the x, y and rotational inertias [N*s, N*s, N*m*s]; None (the default)
+    where they follow from the mechanism's couplings at t = 0 (a dependent link).
     ``angle``: an expression in local names (a position read) used as the link angle instead of the
     link's own integrated angle: a body welded to a neighbour's plane (no ``phi`` signal then).
     ``slide``: initial travel [m] of a slider: the body then moves along its x axis by the travel

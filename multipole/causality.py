@@ -317,7 +317,7 @@ class _Analyser:
                 continue
             nat = self.aliases.get(eq.natural, (eq.natural, 1))[0] if eq.natural is not None else None
             self.equations.append(Equation(e, eq.owner, eq.role, nat, eq.note))
-        self.states = [State(s.symbol, s.rhs.xreplace(subs), s.initial, s.storage, s.owner, s.unit)
+        self.states = [State(s.symbol, s.rhs.xreplace(subs), s.initial, s.storage, s.owner, s.unit, s.given)
                        for s in flat.states]
         for st in self.states:
             self.equations.append(Equation(der(st.symbol) - st.rhs, st.owner, "state", der(st.symbol),

@@ -673,6 +673,8 @@ def _consistent_start(eq: Equations, demoted) -> Diagnostic | None:
     try:
         got = evaluate_blocks(eq, 0.0, eq.initial_values(), [s.symbol for s in demoted])
     except (ArithmeticError, TypeError, ValueError, np.linalg.LinAlgError):
+        if not s.given:         # nothing was given (a dependent link of a mechanism): nothing to report
+            continue
         return None
     vals = {p: v for p, v in eq.params.items()}
     changed = []

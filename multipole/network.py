@@ -209,6 +209,7 @@ class State:
     storage: bool
     owner: str
     unit: str
+    given: bool = True      #: an initial value was given (see :class:`multipole.primitives.StateSpec`)
 
     @property
     def name(self) -> str:
@@ -428,7 +429,8 @@ class _Flattener:
         for spec in prim.states():
             sym = var(f"{path}.{spec.name}")
             init = self.resolve(spec.initial, scope, f"{path} initial {spec.name}")
-            self.flat.states.append(State(sym, sp.sympify(spec.rhs(V)), init, spec.storage, path, spec.unit))
+            self.flat.states.append(State(sym, sp.sympify(spec.rhs(V)), init, spec.storage, path, spec.unit,
+                                          spec.given))
         for rel in prim.relations(V):
             self.flat.equations.append(Equation(sp.sympify(rel.expr), path, rel.role, rel.natural, rel.note))
 

@@ -46,6 +46,7 @@ class StateSpec:
     initial: object
     storage: bool
     unit: str
+    given: bool = True      #: False: no initial value was given (the consistent one is taken silently)
 
 
 @dataclass
@@ -280,12 +281,15 @@ class I(Primitive):
     numeric_params = ("J",)
 
     def __init__(self, J=None, dom="rotational", p0=0.0, law=None):
+        self.given = p0 is not None     # p0=None: the momentum follows from the couplings at t = 0
+        p0 = 0.0 if p0 is None else p0
         if (J is None) == (law is None):
             raise ModelError("bad_law", "I needs exactly one of J (linear) or law (f as a function of p)")
         super().__init__({"p": dom}, {"J": _sym(J) if J is not None else None, "law": law, "p0": _sym(p0)})
 
     def states(self):
-        return [StateSpec("p", lambda V: V.e("p"), self.params["p0"], True, self.ports["p"].momentum_unit)]
+        return [StateSpec("p", lambda V: V.e("p"), self.params["p0"], True, self.ports["p"].momentum_unit,
+                          self.given)]
 
     def relations(self, V):
         p = V.x("p")

@@ -8,8 +8,8 @@ Rules kept here once:
   (``result.plot()`` in a notebook) is made by pyplot, so the user's backend shows it.
 * Time axes are scaled to the run: seconds, ms, µs or ns, whichever puts the end of the run between
   1 and 1000, with the unit in the label (``t [ms]``).
-* Every axis is labelled with its quantity and SI unit; legends sit outside the axes, below them,
-  so they never cover a curve.
+* Every axis is labelled with its quantity and SI unit; legends sit outside the axes (above the
+  panels of a time plot, below those of a Bode plot), so they never cover a curve.
 * Bode: one column of panels (magnitude above phase) per pair of output unit and input unit, so
   that curves on one axis have the same unit; the inputs are the sources the netlist drives
   (:func:`multipole.linearize.driven_inputs`: grounds are not inputs).
@@ -60,25 +60,38 @@ def _label(name: str, unit: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def time_plot(result, path=None, title: str = ""):
-    """One panel per output of ``result`` (a :class:`~multipole.simulate.Result`; its states where
-    it has no outputs) over time, events as dotted lines, the solver's summary as a footer.  Saved
-    to ``path`` when given; returns the figure."""
-    names = list(result.outputs) or list(result.state_names)
+def time_plot(result, path=None, title: str = "", footer: str | None = None):
+    """One panel per output over time, events as dotted lines, the solver's summary as a footer.
+
+    ``result`` is a :class:`~multipole.simulate.Result` (its states where it has no outputs), or a
+    mapping ``{label: Result}`` to compare runs (a full and a reduced model, two solvers): the first
+    one's outputs make the panels, the first is drawn thick and grey, the others dashed on top, with
+    a legend above the panels.  ``footer`` replaces the first run's summary.  Saved to ``path``
+    when given; returns the figure."""
+    runs = dict(result) if isinstance(result, dict) else {"": result}
+    first = next(iter(runs.values()))
+    names = list(first.outputs) or list(first.state_names)
     n = max(len(names), 1)
-    footer = textwrap.fill(result.summary(), 160)       # the solver's reason can be long: never cut
-    fig = new_figure(8.0, 1.7 * n + 1.2 + 0.12 * footer.count("\n"), show=path is None)
+    footer = textwrap.fill(first.summary() if footer is None else footer, 160)   # never cut
+    legend = 0.35 if len(runs) > 1 else 0.0
+    fig = new_figure(8.0, 1.7 * n + 1.2 + legend + 0.12 * footer.count("\n"), show=path is None)
     axes = fig.subplots(n, 1, sharex=True, squeeze=False)[:, 0]
-    t_end = result.t[-1] if len(result.t) else 1.0
+    t_end = max((r.t[-1] for r in runs.values() if len(r.t)), default=1.0)
     scale, unit = time_unit(t_end)
+    styles = [{"lw": 1.4}] if len(runs) == 1 else [{"lw": 2.4, "color": "0.7"}] + \
+        [{"lw": 1.1, "ls": "--", "color": f"C{k}"} for k in range(len(runs) - 1)]
     for ax, name in zip(axes, names):
-        ax.plot(result.t / scale, result[name], lw=1.4)
-        ax.set_ylabel(_label(name, result.units.get(name, "")), fontsize=9)
+        for (label, run), style in zip(runs.items(), styles):
+            if name in run.outputs or name in run.state_names:
+                ax.plot(run.t / scale, run[name], label=label or None, **style)
+        ax.set_ylabel(_label(name, first.units.get(name, "")), fontsize=9)
         ax.grid(alpha=0.3)
-        for te, _ in result.events[:50]:
+        for te, _ in first.events[:50]:
             ax.axvline(te / scale, color="0.6", lw=0.6, ls=":")
     axes[-1].set_xlabel(f"t [{unit}]")
     axes[-1].set_xlim(0, t_end / scale)
+    if len(runs) > 1:                       # above the panels: never over a curve
+        axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.02), ncols=len(runs), fontsize=8, frameon=False)
     fig.align_ylabels(axes)
     fig.suptitle(textwrap.fill(title or "simulation", 90), fontsize=10)
     fig.supxlabel(footer, fontsize=6, color="0.35", ha="center")

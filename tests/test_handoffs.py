@@ -249,3 +249,17 @@ def test_plot_without_a_file_is_a_pyplot_figure_for_the_notebook(drive_result):
         assert fig.number in plt.get_fignums() and matplotlib.get_backend() == backend
     finally:
         plt.close(fig)
+
+
+def test_time_plot_compares_runs_with_a_legend_off_the_curves(drive_result, tmp_path):
+    """A full and a coarse run on one figure (how a reduced model or a second solver is shown)."""
+    from multipole.plotting import time_plot
+    coarse = pipeline.run(multipole.load(DRIVE), t_end=0.01, dt_out=1e-3, solver="RK23", rtol=1e-3, progress=False)
+    fig = time_plot({"full": drive_result, "coarse": coarse}, tmp_path / "c.png", "two runs", footer="compared")
+    assert all(len(ax.get_lines()) == 2 for ax in fig.axes)
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["full", "coarse"]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    box = fig.axes[0].get_legend().get_window_extent(renderer)
+    assert not any(box.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
+    assert not box.overlaps(fig._suptitle.get_window_extent(renderer))

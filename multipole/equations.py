@@ -673,12 +673,12 @@ def _consistent_start(eq: Equations, demoted) -> Diagnostic | None:
     try:
         got = evaluate_blocks(eq, 0.0, eq.initial_values(), [s.symbol for s in demoted])
     except (ArithmeticError, TypeError, ValueError, np.linalg.LinAlgError):
-        if not s.given:         # nothing was given (a dependent link of a mechanism): nothing to report
-            continue
         return None
     vals = {p: v for p, v in eq.params.items()}
     changed = []
     for s in demoted:
+        if not s.given:         # nothing was given (a dependent link of a mechanism): nothing to report
+            continue
         given = float(sp.sympify(s.initial).xreplace(vals))
         value, size = got[s.symbol]
         if abs(value - given) > 1e-9 * max(size, abs(given)):

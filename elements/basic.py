@@ -15,8 +15,8 @@ from __future__ import annotations
 import sympy as sp
 
 import multipole as mp
-from multipole import DOMAINS, I, TF, ElementType, Network, Param, Quantity, Se, Sf, element, junction_a, junction_b, \
-    register
+from multipole import DOMAINS, I, TF, ElementType, Network, Param, Quantity, Reduction, Se, Sf, element, junction_a, \
+    junction_b, register
 
 _C, _D, _L = (sp.Symbol(n) for n in ("c", "d", "L"))
 
@@ -46,7 +46,8 @@ def _body(kind, domain, speed, params):
 @element("inertia", "rigid rotating body: ports a and b turn together, J*omega' = torque at a + torque at b", _TWO,
          [Param("J", "kg*m^2", "moment of inertia", positive=True),
           Param("omega0", "rad/s", "initial angular velocity", 0.0)],
-         {"omega": "rad/s: angular velocity", "p": "N*m*s: angular momentum (state)"})
+         {"omega": "rad/s: angular velocity", "p": "N*m*s: angular momentum (state)"},
+         reductions=(Reduction("massless", join=("a", "b")),))
 def inertia(J, omega0):
     """Rigid rotating body [J in kg·m², omega0 in rad/s]."""
     return _body("inertia", "rotational", "omega", {"J": J, "omega0": omega0})
@@ -54,7 +55,7 @@ def inertia(J, omega0):
 
 @element("mass", "rigid body in translation: ports a and b move together, m*v' = force at a + force at b", _TWO,
          [Param("m", "kg", "mass", positive=True), Param("v0", "m/s", "initial velocity", 0.0)],
-         {"v": "m/s: velocity", "p": "N*s: momentum (state)"})
+         {"v": "m/s: velocity", "p": "N*s: momentum (state)"}, reductions=(Reduction("massless", join=("a", "b")),))
 def mass(m, v0):
     """Rigid body in translation [m in kg, v0 in m/s]."""
     return _body("mass", "translational", "v", {"m": m, "v0": v0})
@@ -64,7 +65,7 @@ def mass(m, v0):
          [Param("c", "N*m/rad | N/m", "stiffness", positive=True), Param("x0", "rad | m", "initial deflection", 0.0),
           _DOMAIN_MECH],
          {"force": "N*m | N: effort in the spring (positive when compressed from a)",
-          "deflection": "rad | m: deflection (state q)"})
+          "deflection": "rad | m: deflection (state q)"}, reductions=(Reduction("rigid", join=("a", "b")),))
 def spring(c, x0, domain):
     """Elastic coupling: ``force = c·deflection``, ``deflection' = f_a - f_b`` [c in N/m or N·m/rad]."""
     quantities = {"force": Quantity(lambda V: V.e("law.p"), DOMAINS[domain].effort_unit),
@@ -77,7 +78,8 @@ def spring(c, x0, domain):
          [Param("d", "N*m*s/rad | N*s/m", "viscous coefficient (or give law)", None),
           Param("law", "N*m | N", "force as a function of the relative flow f (and t)", None, "law", law_var="f"),
           _DOMAIN_MECH],
-         {"force": "N*m | N: effort in the damper", "power": "W: dissipated power"}, one_of=(("d", "law"),))
+         {"force": "N*m | N: effort in the damper", "power": "W: dissipated power"}, one_of=(("d", "law"),),
+         reductions=(Reduction("removed"),))
 def damper(d, law, domain):
     """Viscous (``force = d·(f_a - f_b)``) or nonlinear (``law`` of the relative flow ``f``) damper."""
     quantities = {"force": Quantity(lambda V: V.e("law.p"), DOMAINS[domain].effort_unit),
@@ -90,7 +92,8 @@ def _pin_quantities():
     return {"i": Quantity(lambda V: V.f("law.p")), "v": Quantity(lambda V: V.e("law.p"))}
 
 
-@element("resistor", "resistor: e_a - e_b = R*i", _TWO, [Param("R", "Ohm", "resistance", positive=True)], _PIN_QTY)
+@element("resistor", "resistor: e_a - e_b = R*i", _TWO, [Param("R", "Ohm", "resistance", positive=True)], _PIN_QTY,
+         reductions=(Reduction("shorted", join=("a", "b")),))
 def resistor(R):
     """Resistor between pins a and b: ``e_a - e_b = R·i``, i the current into a [Ω]."""
     return _two_port("resistor", junction_b, mp.R(r=sp.Symbol("R"), dom="electrical"), _pin_quantities(), {"R": R})
@@ -107,7 +110,8 @@ def capacitor(C, v0):
 
 
 @element("inductor", "inductor: L*i' = e_a - e_b", _TWO,
-         [Param("L", "H", "inductance", positive=True), Param("i0", "A", "initial current", 0.0)], _PIN_QTY)
+         [Param("L", "H", "inductance", positive=True), Param("i0", "A", "initial current", 0.0)], _PIN_QTY,
+         reductions=(Reduction("shorted", join=("a", "b")),))
 def inductor(L, i0):
     """Inductor [H] between pins a and b; initial current ``i0`` [A]."""
     return _two_port("inductor", junction_b, I(J=_L, dom="electrical", p0=_L * sp.Symbol("i0")), _pin_quantities(),

@@ -7,7 +7,7 @@ Pipeline (one module per stage)::
 
 The public API below is what element libraries and scripts build on.
 """
-from .catalogue import REQUIRED, ElementType, Param, catalogue, element, register
+from .catalogue import REQUIRED, ElementType, Param, Reduction, catalogue, element, register
 from .causality import Analysis, analyse
 from .diagnostics import CATALOGUE as DIAGNOSTICS, Diagnostic
 from .domains import BUNDLES, DOMAINS, Bundle, Domain
@@ -23,6 +23,7 @@ from .linearize import control_name, linearize_scene as linearize
 from .netlist import Scene, load, loads
 from . import pipeline
 from . import sweep    # a callable module: multipole.sweep(scene, {...}) runs a study
+from .reduce import reduce
 
 __version__ = "0.1.0"
 

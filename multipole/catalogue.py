@@ -19,6 +19,28 @@ from .primitives import C, GY, I, MTF, R, TF, CField, Se, Sf, Tap, junction_a, j
 REQUIRED = object()
 
 
+@dataclass(frozen=True)
+class Reduction:
+    """A simplification an element type offers ``multipole reduce`` (:mod:`multipole.reduce`),
+    declared by the element library; the kernel applies it to the netlist without knowing the type.
+
+    * ``join``: the element is replaced by a rigid joint of these ports (their nodes merge): a
+      spring made rigid, a body made massless;
+    * ``level`` and ``levels``: the parameter naming a fidelity level and the levels from the most
+      detailed to the simplest (the element drops to the next level; ``drop`` lists parameters
+      that belong to the levels left behind and are removed with them);
+    * neither: the element is removed and its ports are left open (a negligible damper).
+
+    ``action`` is the word the report uses (``rigid``, ``massless``, ``removed``, ``level``).
+    """
+
+    action: str
+    join: tuple = ()
+    level: str = ""
+    levels: tuple = ()
+    drop: tuple = ()
+
+
 @dataclass
 class Param:
     """A parameter of an element type.
@@ -91,8 +113,14 @@ class ElementType:
     quantities: dict = field(default_factory=dict)   # name -> "unit: meaning"
     one_of: tuple = ()                # groups of parameters of which exactly one must be given
     category: str = "element"
+    reductions: tuple = ()            # Reduction objects: what ``multipole reduce`` may do with it
 
     def __post_init__(self):
+        for red in self.reductions:
+            if set(red.join) - set(self.ports) or (red.level and (self.param(red.level) is None or len(red.levels) < 2)):
+                raise ModelError("bad_element_type", f"element type {self.name}: reduction {red.action!r} names ports "
+                                 "or a level parameter the type does not declare",
+                                 "join only declared ports; give a declared level parameter and at least two levels")
         self.builder = self.build
         taken = inspect.signature(self.builder).parameters
         declared = [p.name for p in self.params]

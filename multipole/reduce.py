@@ -1,0 +1,434 @@
+"""Model reduction with measured error: ``multipole reduce`` and :func:`reduce` (docs/reduce.md).
+
+The scene is run as it is (its own inputs, horizon and solver options) and each element's
+*activity* is measured: ``∫|P| dt`` over the run, ``P`` the net power into the element through its
+ports (effort × flow summed over the ports, sampled on the run's output grid by
+:meth:`~multipole.codegen.Model.port_values`), as a share of the sum over all elements.
+
+The candidates are the simplifications the element library declares for each element type
+(:class:`~multipole.catalogue.Reduction`: a spring made rigid, a body made massless, a damper
+removed, ...); the kernel applies them to the netlist data without knowing the types.  They are
+tried from the least active element up; each one is verified by simulating the edited netlist and
+comparing the requested outputs with the full model's (the largest error relative to each output's
+peak) and kept if that error is at most ``tol`` (greedy; the error is always measured against the
+full model, never accumulated by estimate).  Passes repeat until one keeps nothing, so a damper
+left across a joint made rigid is removed in the next pass.  Elements an output names are left
+alone.  The result is a valid netlist, written by ``yaml.safe_dump`` from the user's own data with
+the edits applied, and a :class:`Report`.
+"""
+from __future__ import annotations
+
+import copy
+import csv
+import io
+import math
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from . import pipeline
+from .catalogue import Reduction, catalogue
+from .errors import MultipoleError, NetlistError
+from .files import atomic_output
+from .netlist import Scene, load, loads
+
+
+@dataclass
+class Step:
+    """One candidate tried: ``error`` is the largest relative output error against the full model
+    (None if the candidate could not run: ``note`` says why); wall times are the integrations' [s]."""
+
+    element: str
+    type: str
+    activity: float
+    action: str
+    accepted: bool
+    states_before: int
+    states_after: int | None
+    error: float | None
+    wall_full: float
+    wall_reduced: float | None
+    note: str = ""
+
+    @property
+    def speedup(self) -> float | None:
+        return self.wall_full / self.wall_reduced if self.wall_reduced else None
+
+
+@dataclass
+class Report:
+    """What :func:`reduce` did: the activity share per element, the steps tried in order, the
+    reduced netlist ``text``, and the full and reduced runs (``full``, ``reduced``: Results)."""
+
+    scene: str
+    tol: float
+    outputs: list
+    activity: dict
+    steps: list
+    text: str
+    full: object
+    reduced: object
+    states_full: int
+    states_reduced: int
+    error: float
+    locked: list = field(default_factory=list)
+
+    @property
+    def accepted(self) -> list:
+        return [s for s in self.steps if s.accepted]
+
+    @property
+    def wall_full(self) -> float:
+        return float(self.full.stats.get("wall_time") or 0.0)
+
+    @property
+    def wall_reduced(self) -> float:
+        return float(self.reduced.stats.get("wall_time") or 0.0)
+
+    @property
+    def speedup(self) -> float:
+        return self.wall_full / self.wall_reduced if self.wall_reduced > 0 else math.inf
+
+    def summary(self) -> str:
+        if not self.accepted:
+            return (f"{self.scene}: nothing can be simplified within tol {self.tol:g} on "
+                    f"{', '.join(self.outputs)} ({len(self.steps)} candidate(s) tried); the model is unchanged")
+        acts = "; ".join(f"{s.element} {s.action}" for s in self.accepted)
+        return (f"{self.scene}: {len(self.accepted)} simplification(s) within tol {self.tol:g}: {acts}; states "
+                f"{self.states_full} -> {self.states_reduced}, output error {self.error:.3g}, integration "
+                f"{self.wall_full:.3g} s -> {self.wall_reduced:.3g} s (speed-up {self.speedup:.3g}x)")
+
+    ROW = ("step", "element", "type", "activity_share", "action", "accepted", "states_before", "states_after",
+           "output_error", "wall_full_s", "wall_reduced_s", "speedup", "note")
+
+    def rows(self) -> list:
+        out = []
+        for k, s in enumerate(self.steps, 1):
+            out.append([k, s.element, s.type, f"{s.activity:.3g}", s.action, "yes" if s.accepted else "no",
+                        s.states_before, "" if s.states_after is None else s.states_after,
+                        "" if s.error is None else f"{s.error:.3g}", f"{s.wall_full:.3g}",
+                        "" if s.wall_reduced is None else f"{s.wall_reduced:.3g}",
+                        "" if s.speedup is None else f"{s.speedup:.3g}", s.note])
+        return out
+
+    def to_csv(self) -> str:
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(self.ROW)
+        w.writerows(self.rows())
+        return buf.getvalue()
+
+    def to_markdown(self) -> str:
+        lines = [f"# Reduction of {self.scene}", "", self.summary(), "",
+                 f"Outputs compared: {', '.join(self.outputs)}; tolerance {self.tol:g} (largest error relative to "
+                 "each output's peak, measured by re-simulation against the full model).", ""]
+        if self.locked:
+            lines += [f"Left alone (named by an output): {', '.join(self.locked)}.", ""]
+        lines += ["## Activity (share of the sum of ∫|P| dt)", "", "| element | share |", "|---|---|"]
+        lines += [f"| {e} | {a:.3g} |" for e, a in sorted(self.activity.items(), key=lambda kv: -kv[1])]
+        lines += ["", "## Steps", "", "| " + " | ".join(self.ROW) + " |", "|" + "---|" * len(self.ROW)]
+        lines += ["| " + " | ".join(str(c) for c in r) + " |" for r in self.rows()]
+        return "\n".join(lines) + "\n"
+
+    def plot(self, path=None):
+        """The outputs of the full and the reduced model over time, one panel each."""
+        import matplotlib.pyplot as plt
+        n = len(self.outputs)
+        fig, axes = plt.subplots(n, 1, figsize=(8, 1.9 * n + 1.2), sharex=True, squeeze=False)
+        for ax, name in zip(axes[:, 0], self.outputs):
+            ax.plot(self.full.t, self.full.outputs[name], lw=2.2, color="0.7", label="full")
+            ax.plot(self.reduced.t, self.reduced.outputs[name], lw=1.0, ls="--", color="C0", label="reduced")
+            unit = self.full.units.get(name, "")
+            ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, rotation=0, ha="right", va="center", fontsize=9)
+            ax.grid(alpha=0.3)
+        axes[0, 0].legend(fontsize=8, loc="best")
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.suptitle(f"{self.scene}: full ({self.states_full} states) vs reduced ({self.states_reduced} states), "
+                     f"error {self.error:.2g} (tol {self.tol:g})", fontsize=10)
+        fig.tight_layout()
+        if path:
+            with atomic_output(path) as tmp:
+                fig.savefig(tmp, dpi=110, format="png")
+            plt.close(fig)
+        return fig
+
+    def write(self, folder) -> list:
+        """``report.md``, ``report.csv`` and ``outputs.png`` in ``folder`` (created); the paths."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        paths = [folder / "report.md", folder / "report.csv", folder / "outputs.png"]
+        for path, text in zip(paths, (self.to_markdown(), self.to_csv())):
+            with atomic_output(path) as tmp:
+                Path(tmp).write_text(text, encoding="utf-8")
+        self.plot(paths[2])
+        return paths
+
+
+def check_tol(tol) -> float:
+    """``tol`` as a float in (0, 1), else an error (exit 2)."""
+    try:
+        value = float(tol)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (0.0 < value < 1.0):
+        raise MultipoleError("bad_option", f"--tol must be a relative error between 0 and 1 (exclusive), got {tol!r}",
+                             "e.g. --tol 1e-3")
+    return value
+
+
+# -- the netlist edits -------------------------------------------------------------------------------
+
+def _ports_of(data: dict, element: str) -> list:
+    """``(group index, reference)`` of every connection reference to a port of ``element``."""
+    return [(k, ref) for k, group in enumerate(data["connections"]) for ref in group
+            if isinstance(ref, str) and ref.rsplit(".", 1)[0] == element]
+
+
+def apply(data: dict, element: str, red: Reduction) -> dict | None:
+    """A copy of the netlist ``data`` with ``red`` applied to ``element``; None where it does not
+    apply (connections not written as lists of ``element.port``, a level already the simplest)."""
+    conns = data.get("connections")
+    if not isinstance(conns, list) or not all(isinstance(g, list) for g in conns):
+        return None
+    new = copy.deepcopy(data)
+    entry = new["elements"][element]
+    if red.level:
+        levels = list(red.levels)
+        current = entry.get(red.level, levels[0]) if isinstance(entry, dict) else None
+        if current not in levels or levels.index(current) + 1 >= len(levels):
+            return None
+        entry[red.level] = levels[levels.index(current) + 1]
+        for name in red.drop:
+            entry.pop(name, None)
+        return new
+    groups = new["connections"]
+    mine = {f"{element}.{p}" for p in red.join}
+    if red.join:
+        merged, first = [], None
+        for k, group in enumerate(groups):
+            if any(ref in mine for ref in group):
+                first = k if first is None else first
+                merged += [ref for ref in group if ref not in mine and ref not in merged]
+        if first is None:
+            return None
+        groups = [merged if k == first else g for k, g in enumerate(groups)
+                  if k == first or not any(ref in mine for ref in g)]
+    owned = {ref for _k, ref in _ports_of({"connections": groups}, element)}
+    groups = [[ref for ref in g if ref not in owned] for g in groups]
+    new["connections"] = [g for g in groups if len(g) >= 2]
+    del new["elements"][element]
+    return new
+
+
+def dump(data: dict, header: str = "") -> str:
+    """The netlist ``data`` as YAML (``yaml.safe_dump``, keys in the user's order), after a comment."""
+    text = yaml.safe_dump(data, sort_keys=False, default_flow_style=None, allow_unicode=True, width=110)
+    return "".join(f"# {line}\n" for line in header.splitlines()) + text
+
+
+# -- measurements ----------------------------------------------------------------------------------
+
+def activity(scene: Scene, result, outputs) -> dict:
+    """``{element: share}``: ∫|P| dt of each top-level element of ``scene`` over ``result``'s grid
+    (``result`` from a run with every state: ``pipeline.run(..., prune=False)``), divided by the sum
+    over the elements."""
+    m = pipeline.model(scene, outputs, prune=False)
+    flat = pipeline.equations(scene).analysis.flat
+    ports = {}
+    for path, inner in flat.external_ports.items():
+        owner = path.rsplit(".", 1)[0]
+        if owner in scene.element_types:
+            ports.setdefault(owner, []).append(inner)
+    power = {e: np.zeros(len(result.t)) for e in ports}
+    for k, (t, x) in enumerate(zip(result.t, result.states)):
+        values = m.port_values(t, x)
+        for e, inner in ports.items():
+            power[e][k] = sum(values.get(f"{p}.e", 0.0) * values.get(f"{p}.f", 0.0) for p in inner)
+    integral = {e: float(np.trapezoid(np.abs(p), result.t)) if len(result.t) > 1 else 0.0 for e, p in power.items()}
+    total = sum(integral.values())
+    return {e: (v / total if total > 0 else 0.0) for e, v in integral.items()}
+
+
+def output_error(full, reduced, outputs) -> float:
+    """Largest ``|y_reduced - y_full|`` over the grid divided by the peak ``|y_full|``, over the
+    outputs (absolute where an output is zero throughout)."""
+    worst = 0.0
+    for name in outputs:
+        ref, got = np.asarray(full.outputs[name]), np.asarray(reduced.outputs[name])
+        if ref.shape != got.shape:
+            return math.inf
+        peak = float(np.max(np.abs(ref))) if ref.size else 0.0
+        worst = max(worst, float(np.max(np.abs(got - ref))) / (peak if peak > 0 else 1.0))
+    return worst if math.isfinite(worst) else math.inf
+
+
+def _run(scene: Scene, outputs, prune: bool = True):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return pipeline.run(scene, outputs=outputs, progress=False, prune=prune)
+
+
+class _Bar:
+    """A one-line progress bar on stderr (only on a terminal unless asked for)."""
+
+    def __init__(self, enabled):
+        self.enabled = sys.stderr.isatty() if enabled is None else bool(enabled)
+
+    def show(self, done: int, total: int, what: str) -> None:
+        if self.enabled:
+            filled = int(24 * done / max(total, 1))
+            print(f"\rreduce [{'#' * filled}{'.' * (24 - filled)}] {done}/{total} {what[:40]:<40}", end="",
+                  file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.enabled:
+            print(file=sys.stderr, flush=True)
+
+
+def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None):
+    """Simplify ``scene`` (a netlist path, or a :class:`~multipole.netlist.Scene` loaded from a file)
+    as far as the outputs allow: ``(reduced Scene, Report)`` (see the module's doc).
+
+    ``tol``: largest relative output error accepted, in (0, 1); ``outputs``: names to compare
+    (default: the scene's outputs).  Errors: ``bad_option`` for ``tol``, ``no_outputs``,
+    ``unknown_output`` (exit 2), :class:`~multipole.errors.IllPosedError` for a scene that is not
+    well-posed (exit 1).
+    """
+    tol = check_tol(tol)
+    path = str(scene.path if isinstance(scene, Scene) else scene)
+    full_scene = scene if isinstance(scene, Scene) else load(path, overrides)
+    with open(path, encoding="utf-8") as fh:
+        data = yaml.safe_load(fh)
+    for name, value in (overrides or {}).items():       # --set element.param=value, as the loader applies it
+        element, _, param = name.partition(".")
+        if isinstance(data.get("elements", {}).get(element), dict) and param:
+            data["elements"][element][param] = value
+        elif isinstance(data.get("parameters"), dict):
+            data["parameters"][name] = value
+    outputs = list(outputs or full_scene.outputs)
+    if list(data.get("outputs") or []) != outputs:
+        data["outputs"] = list(outputs)           # the reduced netlist offers what it was checked on
+    if not outputs:
+        raise NetlistError("no_outputs", "reduce compares outputs, and none are given",
+                           "add outputs: [...] to the netlist or give --outputs", path)
+    eq = pipeline.equations(full_scene)           # IllPosedError if not well-posed
+    for name in outputs:
+        try:
+            eq.output(name)
+        except MultipoleError as exc:
+            raise NetlistError("unknown_output", exc.message, exc.fix, path) from None
+    bar = _Bar(progress)
+    bar.show(0, 1, "full model")
+    full = _run(full_scene, outputs, prune=False)
+    shares = activity(full_scene, full, outputs)
+    timed = _run(full_scene, outputs)             # the integration time of the model simulate runs
+    wall_full = float(timed.stats.get("wall_time") or 0.0)
+    types = catalogue()
+    observed = {o.split(".")[0] for o in outputs}
+    locked = sorted(e for e in full_scene.element_types if e in observed and types[full_scene.element_types[e]].reductions)
+    candidates = [(e, red) for e, t in full_scene.element_types.items() if e not in observed
+                  for red in types[t].reductions]
+    candidates.sort(key=lambda c: shares.get(c[0], 0.0))
+    steps, current, best, states_now, tried = [], data, timed, len(timed.state_names), 0
+    error_now = 0.0
+    total = len(candidates)
+    changed = True
+    while changed and candidates:
+        changed = False
+        for element, red in list(candidates):
+            tried += 1
+            bar.show(min(tried, total), total, f"{element} {red.action}")
+            if element not in current.get("elements", {}):
+                candidates.remove((element, red))
+                continue
+            edited = apply(current, element, red)
+            if edited is None:
+                continue
+            step = Step(element, full_scene.element_types[element], shares.get(element, 0.0),
+                        _action(current, element, red), False, states_now, None, None, wall_full, None)
+            try:
+                reduced_scene = loads(dump(edited), path)
+                result = _run(reduced_scene, outputs)
+            except MultipoleError as exc:
+                step.note = f"{exc.code}: {exc.message}"[:160]
+                steps.append(step)
+                candidates.remove((element, red))
+                continue
+            step.states_after = len(result.state_names)
+            step.error = output_error(full, result, outputs)
+            step.wall_reduced = float(result.stats.get("wall_time") or 0.0)
+            step.accepted = step.error <= tol
+            if not step.accepted:
+                step.note = f"error {step.error:.3g} > tol {tol:g}"
+            steps.append(step)
+            candidates.remove((element, red))
+            if step.accepted:
+                current, best, states_now, error_now, changed = edited, result, step.states_after, step.error, True
+                candidates = [c for c in candidates if c[0] in current["elements"]] + \
+                    [c for c in _retry(steps, current)]
+                break
+    bar.close()
+    header = (f"reduced by multipole reduce from {Path(path).name} at tol {tol:g} on {', '.join(outputs)}: "
+              + ("; ".join(f"{s.element} {s.action}" for s in steps if s.accepted) or "nothing simplified")
+              + f"\nmeasured output error {error_now:.3g} (largest, relative to each output's peak)")
+    if any(s.accepted for s in steps):
+        current = dict(current)
+        current.pop("reference", None)        # it describes the full model
+    text = dump(current, header)
+    reduced_scene = loads(text, path)
+    report = Report(full_scene.name, tol, outputs, shares, steps, text, timed, best, len(timed.state_names),
+                    states_now, error_now, locked)
+    return reduced_scene, report
+
+
+def _retry(steps, current) -> list:
+    """Candidates rejected because they could not run (an ill-posed edit) are not retried; those
+    rejected for their error are retried after a later edit (it may have made them harmless)."""
+    types = catalogue()
+    out = []
+    for s in steps:
+        if not s.accepted and s.error is not None and s.element in current["elements"]:
+            entry = current["elements"][s.element]
+            kind = entry.get("type") if isinstance(entry, dict) else None
+            out += [(s.element, red) for red in types[kind].reductions if kind in types] if kind else []
+    return list(dict.fromkeys(out))
+
+
+def _action(data, element, red: Reduction) -> str:
+    if red.level:
+        entry = data["elements"][element]
+        current = entry.get(red.level, red.levels[0])
+        return f"level {current} -> {red.levels[list(red.levels).index(current) + 1]}"
+    return red.action
+
+
+def cmd_reduce(args) -> int:
+    """``multipole reduce FILE [--tol REL] [--outputs ...] [-o reduced.yaml] [--report DIR]``."""
+    from .cli import _overrides, check_output_path
+    check_tol(args.tol)
+    check_output_path(args.output, (".yaml", ".yml"), "-o")
+    if args.report and Path(args.report).exists() and not Path(args.report).is_dir():
+        raise MultipoleError("bad_output", f"--report {args.report}: is a file, not a folder", "give a folder name")
+    _scene, report = reduce(args.file, args.tol, args.outputs, progress=False if args.quiet else None,
+                            overrides=_overrides(args.set))
+    print(report.summary())
+    for s in report.steps:
+        verdict = "kept" if s.accepted else "rejected"
+        error = f"error {s.error:.3g}" if s.error is not None else s.note
+        print(f"  {s.element} ({s.type}, activity {s.activity:.3g}): {s.action}: {verdict}, {error}")
+    if args.output:
+        with atomic_output(args.output) as tmp:
+            Path(tmp).write_text(report.text, encoding="utf-8")
+        print(f"wrote {args.output}" + ("" if report.accepted else " (unchanged)"))
+    if args.report:
+        for p in report.write(args.report):
+            print(f"wrote {p}")
+    return 0
+
+
+__all__ = ["Report", "Step", "reduce", "apply", "activity", "output_error", "check_tol"]

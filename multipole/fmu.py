@@ -272,12 +272,14 @@ class CWriter(codegen.Writer):
 
 def _refuse_unsupported(w: CWriter, eq: Equations, needed) -> None:
     """Refuse, naming the element, what the C code would not compute as ``multipole simulate``
-    does: a nonlinear loop (Newton's method) or a table (Piecewise)."""
+    does: a nonlinear loop (Newton's method), a table (Piecewise), a value the parameters make
+    infinite (a division by a parameter that is 0)."""
     from .checks import Names
     names = Names(eq.analysis) if eq.analysis is not None else None
 
     def elements(owners):
         return ", ".join(names.elements_of(owners)) if names is not None else ", ".join(owners)
+    values = {q: sp.Float(v) for q, v in eq.params.items()}
     for u in codegen.closure(w.units, needed):
         b = eq.blocks[u.block]
         if u.kind == "newton":
@@ -288,6 +290,12 @@ def _refuse_unsupported(w: CWriter, eq: Equations, needed) -> None:
         if any(sp.sympify(e).has(sp.Piecewise) for e in u.exprs):
             raise FmuError("fmu_table", f"element {elements(b.owners)} uses a table (interp), which the FMU "
                            "export does not support", "replace the table by a formula, or simulate with multipole")
+        for e in u.exprs:          # what multipole's code generation refuses (codegen.Writer.P), refused here too
+            if sp.sympify(e).xreplace(values).has(sp.zoo, sp.oo, sp.nan):
+                zero = sorted(str(q) for q in sp.sympify(e).free_symbols if q in values and values[q] == 0)
+                raise FmuError("infinite_value", f"the parameters make a value of element {elements(b.owners)} "
+                               "infinite" + (f" ({', '.join(zero)} = 0)" if zero else ""),
+                               "a zero inertia, stiffness or resistance divides; use a node or a rigid coupling instead")
     for u, e in eq.inputs.items():
         if sp.sympify(e).has(sp.Piecewise):
             raise FmuError("fmu_table", f"element {u.name.split('.')[0]} uses a table (interp), which the FMU "

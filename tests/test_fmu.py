@@ -15,6 +15,7 @@ import pytest
 from helpers import scene
 from multipole import fmu, pipeline
 from multipole.cli import main
+from multipole.errors import MultipoleError
 from multipole.netlist import load
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -182,3 +183,26 @@ def test_set_gives_the_parameters_their_default_values(tmp_path, capsys):
     start = {v.get("name"): v.find("Real").get("start") for v in root.iter("ScalarVariable")}
     assert float(start["c_shaft"]) == 4000.0 and float(start["rotor.J"]) == 0.004
     assert start["rotor.p"] is None          # computed from rotor.J and rotor.omega0 when initialisation ends
+
+
+def test_a_value_the_parameters_make_infinite_is_refused_as_simulate_refuses_it(tmp_path):
+    sc = scene("""
+        name: zero_law
+        parameters: {m: 2.0, k: 1.0}
+        elements:
+          wall:   {type: ground, domain: translational}
+          damper: {type: damper, law: "f/(k - 1)", domain: translational}
+          mass:   {type: mass, m: m, v0: 1.0}
+        connections:
+          - [wall.p, damper.a]
+          - [damper.b, mass.a]
+        outputs: [mass.v]
+        simulate: {t_end: 1.0}
+        """)
+    with pytest.raises(MultipoleError) as simulated:
+        pipeline.run(sc, progress=False)
+    with pytest.raises(fmu.FmuError) as exported:
+        fmu.export(sc, tmp_path / "zero.fmu")
+    assert exported.value.code == simulated.value.code == "infinite_value"
+    assert "element damper" in exported.value.message
+    assert not (tmp_path / "zero.fmu").exists()

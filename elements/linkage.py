@@ -224,7 +224,11 @@ def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
               "m2": m2, "J2": J2, "gx": gx, "gy": gy, "x1": x1, "y1": y1, "x2": x2, "y2": y2}
     closure = Closure(["L1.K.q3", "L2.K.q3"],
                       [xa1 + L1 * _cos(p1) - xa2 - L2 * _cos(p2), ya1 + L1 * _sin(p1) - ya2 - L2 * _sin(p2)],
-                      "the joint P reached from P1 along link 1 and from P2 along link 2")
+                      "the joint P reached from P1 along link 1 and from P2 along link 2",
+                      conditions=[(L1 + L2 - sp.sqrt(h3), "the links do not reach: |P1P2| exceeds l1 + l2", "m"),
+                                  (sp.sqrt(h3) - sp.Abs(L1 - L2), "the links do not reach: |P1P2| is shorter than "
+                                   "|l1 - l2|", "m")],
+                      guard=(sp.sin(p2 - p1), DEAD_CENTRE, "sin(phi2 - phi1)"))
     q = {"phi1": Quantity(lambda V: V.x("L1.K.q3")), "phi2": Quantity(lambda V: V.x("L2.K.q3")),
          "omega1": Quantity(lambda V: V.f("L1.w.out")), "omega2": Quantity(lambda V: V.f("L2.w.out")),
          "x": Quantity(lambda V: V.param("xa1") + V.param("l1") * sp.cos(V.x("L1.K.q3"))),

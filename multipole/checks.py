@@ -17,11 +17,14 @@ import re
 from collections import defaultdict
 
 import networkx as nx
+import numpy as np
 import sympy as sp
 
 from .diagnostics import Diagnostic, register
+from .domains import bundle
 from .errors import IllPosedError
-from .network import var
+from .network import PositionProblem, closure_order, var
+from .primitives import T
 
 
 def listing(names) -> str:
@@ -453,6 +456,171 @@ def underdetermined(ctx: Context):
             elements=elements, ports=ports)
 
 
+# ---------------------------------------------------------------------------------------------
+# positions and closures (multipole.network: bundles, positions, reads, Closure)
+
+def _user_ports(ctx: Context, pps) -> list:
+    """The netlist ports of primitive port paths, a bundle's components folded into the bundle
+    (``rocker.b2.x``, ``rocker.b2.y`` -> ``rocker.b2``)."""
+    out = []
+    for pp in pps:
+        port = ctx.names.port(pp) or pp
+        head = port.rsplit(".", 1)[0]
+        out.append(head if head in ctx.flat.bundles else port)
+    return list(dict.fromkeys(out))
+
+
+_FRAME = "the frame"
+
+
+def position_graph(flat) -> nx.DiGraph:
+    """Which element's positions each element reads: an edge ``provider -> reader`` (the frame,
+    ``"the frame"``, provides the pose of every anchor left unconnected)."""
+    g = nx.DiGraph()
+    g.add_nodes_from(set(flat.position_providers.values()))
+    for reader, provider, _default in flat.position_reads.values():
+        g.add_edge(provider or _FRAME, reader)
+    return g
+
+
+def _closed_chain(flat, a: str, b: str) -> list:
+    """The loop two elements close when both determine one position: from their nearest common
+    ancestor in the position graph (or the frame) down to ``a``, across to ``b`` and back up."""
+    g = position_graph(flat)
+    g.add_edges_from((_FRAME, n) for n in list(g.nodes) if n != _FRAME and not g.in_degree(n))
+    best = None
+    for c in (nx.ancestors(g, a) | {a}) & (nx.ancestors(g, b) | {b}):
+        pa, pb = nx.shortest_path(g, c, a), nx.shortest_path(g, c, b)
+        if best is None or (len(pa) + len(pb), c == _FRAME) < (len(best[0]) + len(best[1]), best[0][0] == _FRAME):
+            best = pa, pb
+    pa, pb = best or ([_FRAME, a], [_FRAME, b])
+    return pa + pb[::-1]
+
+
+@register("position_overdetermined", "error",
+          "two elements determine the same position (two outputs joined): the loop they close is "
+          "over-constrained, a passive constraint whose joint forces are indeterminate")
+def position_overdetermined(ctx: Context):
+    groups: dict = {}
+    for p in ctx.flat.position_problems:
+        if p.code == "position_overdetermined":
+            groups.setdefault(tuple(p.owners), []).extend(p.ports)
+    for (first, second), pps in groups.items():
+        ports = _user_ports(ctx, pps)
+        chain = _closed_chain(ctx.flat, first, second)
+        yield Diagnostic(
+            "position_overdetermined",
+            f"{first} and {second} both determine the position of the node joining {listing(ports)}: the loop "
+            f"{' -> '.join(chain)} is closed twice (over-constrained: a passive constraint, so its joint forces "
+            "are indeterminate)",
+            f"join {ports[-1]} to an anchor (an input) of an element that follows {second} instead of to an output "
+            f"of {first}, or remove {second}", elements=sorted({first, second}), ports=ports, path=chain)
+
+
+@register("position_loop", "error",
+          "positions that depend on each other in a closed chain of elements: no structural order "
+          "(a group of class 3 or higher that the elements cannot solve one after the other)")
+def position_loop(ctx: Context):
+    found = [p for p in ctx.flat.position_problems if p.code == "position_loop"]
+    if not found and ctx.flat.closures and closure_order(ctx.flat.closures) is None:
+        found = [PositionProblem("position_loop", sorted({o for _s, _r, o in ctx.flat.closures}), [])]
+    for p in found:
+        owners = p.owners or sorted(ctx.flat.position_providers.values())
+        yield Diagnostic(
+            "position_loop",
+            f"the positions of {listing(owners)} depend on each other in a closed chain"
+            + (f" (through {listing(_user_ports(ctx, p.ports))})" if p.ports else "")
+            + ": there is no structural order in which each element is anchored on bodies determined before it "
+            "(a group of class 3 or higher)",
+            "anchor every element on the frame or on outputs of elements before it in the chain; a group of "
+            "higher class needs one element that solves the whole group", elements=sorted(set(owners)),
+            ports=_user_ports(ctx, p.ports), path=owners + owners[:1] if len(owners) > 1 else [])
+
+
+@register("position_undetermined", "error",
+          "an anchor joined to ports none of which determines a position (no output of a moving element)")
+def position_undetermined(ctx: Context):
+    for p in ctx.flat.position_problems:
+        if p.code == "position_undetermined":
+            port = _user_ports(ctx, p.ports)[0]
+            yield Diagnostic(
+                "position_undetermined", f"no element determines the position of {port}, which {p.owners[0]} "
+                "reads: it is joined only to ports that carry no position",
+                "join it to an output port of a moving element, or leave it unconnected to fix it to the frame",
+                elements=p.owners, ports=[port])
+
+
+def _start_value(flat, expr) -> complex | None:
+    """``expr`` at t = 0 in the initial state (states by their initial values), or None."""
+    initial = {s.symbol: s.initial for s in flat.states}
+    try:
+        value = sp.sympify(sp.sympify(expr).xreplace(initial)).xreplace(initial)
+        value = sp.sympify(sp.sympify(value).xreplace(flat.param_values())).xreplace({T: 0})
+        return complex(value.evalf())
+    except (TypeError, ValueError, ArithmeticError):
+        return None
+
+
+@register("cannot_assemble", "error",
+          "a closure that cannot be assembled at t = 0: its elements do not reach (the start formula has "
+          "no real solution); the element and by how much are named")
+def cannot_assemble(ctx: Context):
+    flat = ctx.flat
+    failed = set()
+    for expr, text, unit, owner in flat.conditions:
+        value = _start_value(flat, expr)
+        if owner in failed or value is None or abs(value.imag) > 1e-12 * (1 + abs(value.real)) or value.real >= -1e-12:
+            continue
+        failed.add(owner)
+        yield Diagnostic("cannot_assemble", f"{owner} cannot be assembled at t = 0: {text} by {-value.real:.3g}"
+                         + (f" {unit}" if unit else ""),
+                         f"change the lengths or the anchor positions of {owner} (or the start pose of the elements "
+                         "before it) so that it closes", elements=[owner])
+    if failed:
+        return          # the start values downstream of a failed closure are not real either
+    for states, _res, owner in flat.closures:
+        start = {s.symbol: s.initial for s in flat.states if s.symbol in states}
+        bad = [s for s, e in start.items() if (v := _start_value(flat, e)) is None or not np.isfinite(v)
+               or abs(v.imag) > 1e-9 * (1 + abs(v.real))]
+        if bad:
+            yield Diagnostic("cannot_assemble", f"{owner} cannot be assembled at t = 0: the start value of "
+                             f"{listing(s.name for s in bad)} is not a real number",
+                             f"change the lengths or anchor positions of {owner} so that it closes", elements=[owner])
+
+
+@register("redundant_closure", "error",
+          "a closure whose relations are not independent (a passive constraint): the positions are consistent "
+          "but the joint forces it carries are indeterminate")
+def redundant_closure(ctx: Context):
+    flat = ctx.flat
+    claimed: dict = {}
+    values = flat.param_values()
+    rng = np.random.default_rng(1)
+    for states, residuals, owner in flat.closures:
+        twice = [s for s in states if s in claimed]
+        for s in states:
+            claimed.setdefault(s, owner)
+        J = sp.Matrix(residuals).jacobian(list(states)).xreplace(values)
+        ranks = []
+        for _ in range(3):
+            point = {v: sp.Float(rng.uniform(-3, 3)) for v in J.free_symbols}
+            try:
+                M = np.array(J.xreplace(point).evalf(), dtype=float)
+            except (TypeError, ValueError):
+                continue
+            if np.all(np.isfinite(M)):
+                ranks.append(np.linalg.matrix_rank(M) if M.size else 0)
+        rank = max(ranks) if ranks else len(residuals)
+        if twice or rank < len(residuals):
+            what = (f"{listing(s.name for s in twice)} {'is' if len(twice) == 1 else 'are'} already bound by "
+                    f"the closure of {claimed[twice[0]]}") if twice else \
+                f"only {rank} of its {len(residuals)} position relations are independent"
+            yield Diagnostic("redundant_closure", f"{owner}: {what}, so the loop is over-constrained (a passive "
+                             "constraint: the joint forces it carries are indeterminate)",
+                             f"remove the redundant relation (a joint or link) from {owner}, or free one of its joints",
+                             elements=sorted({flat.element_of(o) for o in {owner} | {claimed[s] for s in twice}}))
+
+
 @register("singular_loop", "error", "an algebraic loop whose equations are singular: it has no unique solution",
           stage="equations")
 def singular_loop(ctx: Context):
@@ -502,19 +670,76 @@ def algebraic_loop(ctx: Context):
     yield from (d for d in (eq.diagnostics if eq is not None else []) if d.code == "algebraic_loop")
 
 
-@register("unconnected_port", "info", "a port nobody connected takes its default termination")
-def unconnected_port(ctx: Context):
-    for node in ctx.flat.nodes:
-        if node.origin != "termination":
+@register("mobility", "info",
+          "the mechanism's degrees of freedom from its position graph (displacement states minus closure "
+          "relations) and the structural order: which element determines which bodies, anchored on what")
+def mobility(ctx: Context):
+    flat = ctx.flat
+    if not flat.closures and not flat.position_reads:
+        return
+    g = position_graph(flat)
+    if not nx.is_directed_acyclic_graph(g):
+        return                          # position_loop says why
+    relations = defaultdict(int)
+    own = {o: set(states) for o, states in flat.position_states.items()}
+    for states, residuals, owner in flat.closures:
+        relations[owner] += len(residuals)
+        own.setdefault(owner, set()).update(states)
+    outputs = defaultdict(list)
+    for pp, owner in flat.position_providers.items():
+        outputs[owner].append(pp)
+    steps, total_states, total_rel = [], 0, 0
+    for owner in nx.topological_sort(g):
+        if owner == _FRAME:
             continue
-        port = ctx.names.port(node.ports[0])
+        n, k = len(own.get(owner, ())), relations[owner]
+        total_states, total_rel = total_states + n, total_rel + k
+        on = sorted(g.predecessors(owner), key=lambda o: (o == _FRAME, o))
+        free = (f"{n} displacement(s) bound by {k} closure relation(s)" + (f", {n - k} free" if n != k else "")
+                if k else f"{n} free displacement(s)")
+        made = listing(_user_ports(ctx, outputs[owner])) if outputs[owner] else "no output"
+        steps.append(f"{owner} ({flat.elements.get(owner, '?')}: {free}) on {listing(on) or _FRAME} "
+                     f"determines {made}")
+    F = total_states - total_rel
+    yield Diagnostic(
+        "mobility",
+        f"mobility F = {F} ({total_states} displacement state(s) - {total_rel} closure relation(s)); structural "
+        f"order: {'; '.join(steps)}", elements=[s.split(" ", 1)[0] for s in steps])
+
+
+def _termination(node) -> str:
+    return ("held: fixed to the frame (flow 0)" if node.held else
+            "free end (effort 0)" if node.domain.free_variable == "e" else "open (flow 0)")
+
+
+@register("unconnected_port", "info", "a port nobody connected takes its default termination (a bundle port "
+          "is listed once: an anchor left unconnected is fixed to the frame at its frame pose)")
+def unconnected_port(ctx: Context):
+    flat = ctx.flat
+    loose: dict = {}                                  # netlist port -> its termination node
+    for node in flat.nodes:
+        port = ctx.names.port(node.ports[0]) if node.origin == "termination" else None
         if port:
-            yield Diagnostic(
-                "unconnected_port",
-                f"{port} is not connected: " + ("held: fixed to the frame (flow 0)" if node.held else
-                                                "free end (effort 0)" if node.domain.free_variable == "e" else
-                                                "open (flow 0)"),
-                elements=[port.split('.')[0]], ports=[port])
+            loose[port] = node
+    shown = set()
+    for port, node in loose.items():
+        head = port.rsplit(".", 1)[0]
+        if head in flat.bundles and head not in shown:
+            parts = bundle(flat.bundles[head]).ports(head)
+            texts = {_termination(loose[p]) for p in parts if p in loose}
+            if all(p in loose for p in parts) and len(texts) == 1:
+                shown.add(head)
+                pose = [(p.rsplit(".", 1)[1], flat.position_reads.get(flat.external_ports.get(p))) for p in parts]
+                pose = [(c, _start_value(flat, r[2])) for c, r in pose if r is not None]
+                at = ", ".join(f"{c} = {v.real:.6g}" for c, v in pose if v is not None)
+                yield Diagnostic("unconnected_port", f"{head} is not connected: {texts.pop()}"
+                                 + (f", at its frame pose {at}" if at and node.held else ""),
+                                 elements=[head.split(".")[0]], ports=[head])
+                continue
+        if head in shown:
+            continue
+        yield Diagnostic("unconnected_port", f"{port} is not connected: {_termination(node)}",
+                         elements=[port.split('.')[0]], ports=[port])
 
 
 @register("degrees_of_freedom", "info", "the states the simulation integrates")

@@ -366,6 +366,8 @@ class Model:
         self.switch_roots = list(namespace.get("SWITCH_ROOTS", [None] * self.n_switches))
         self.values = namespace["values"]
         self.value_names = namespace["VALUE_NAMES"]
+        #: the closures' dead-centre guards: ``guards(t, x)`` and ``(element, text, threshold)`` each
+        self.guards, self.guard_text = namespace.get("guards"), namespace.get("GUARD_TEXT", [])
         self._namespace = namespace
         #: names of the parameters read at run time from ``_P`` (see :meth:`set_parameters`)
         self.runtime = list(meta.get("runtime", []))
@@ -950,6 +952,12 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
                       f"np.array([{', '.join(P(e) for e in out_exprs)}], dtype=float)")
     every = list(eq.inputs) + [v for b in eq.blocks for v in b.variables]
     src += ["VALUE_NAMES = " + repr([v.name for v in every])]
+    known = {s.symbol for s in eq.states} | set(eq.params) | set(eq.inputs) | {T}
+    guards = [g for g in getattr(eq, "guards", []) if sp.sympify(g[0]).free_symbols <= known]
+    src += ["GUARD_TEXT = " + repr([(el, text, float(th)) for _e, th, text, el in guards])]
+    src += w.function("guards", "The closures' dead-centre guards (multipole.network.Closure.guard).",
+                      set().union(*(sp.sympify(g[0]).free_symbols for g in guards)),
+                      f"[{', '.join(P(sp.sympify(g[0])) for g in guards)}]")
     src += w.function("values", "Every input and computed variable, in evaluation order.", every,
                       f"[{', '.join(N[v] for v in every)}]")
     sw = switch_list(w)

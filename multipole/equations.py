@@ -25,7 +25,7 @@ from sympy.solvers.solveset import NonlinearError
 from .causality import Analysis, der
 from .diagnostics import Diagnostic
 from .errors import IllPosedError, ModelError
-from .network import var
+from .network import closure_order, var
 from .primitives import T
 from .stages import bulk
 
@@ -62,6 +62,8 @@ class Equations:
     diagnostics: list = field(default_factory=list)
     units: dict = field(default_factory=dict)   # output name -> SI unit
     analysis: Analysis | None = None
+    #: (expr, threshold, text, element) of the closures' dead-centre guards (in integrated states)
+    guards: list = field(default_factory=list)
 
     # -- look-ups --------------------------------------------------------------------------------
     @property
@@ -390,7 +392,8 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
     if closed:
         _use_closed(blocks, available, closed)
     eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
-                   analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis)
+                   analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis,
+                   guards=list(analysis.flat.guards))
     _loops_at_start(eq)
     if analysis.demoted:
         report = _consistent_start(eq, analysis.demoted)
@@ -413,21 +416,14 @@ def _closure_blocks(analysis: Analysis) -> tuple[list, dict]:
     values (see :func:`_use_closed`), so a position never drifts off its closure."""
     closures = analysis.flat.closures
     closed = {s: closed_symbol(s) for states, _r, _o in closures for s in states}
-    order = nx.DiGraph()
-    order.add_nodes_from(range(len(closures)))
-    owner_of = {s: k for k, (states, _r, _o) in enumerate(closures) for s in states}
-    for k, (_s, residuals, _o) in enumerate(closures):
-        for r in residuals:
-            for v in sp.sympify(r).free_symbols:
-                if v in owner_of and owner_of[v] != k:
-                    order.add_edge(owner_of[v], k)
-    if not nx.is_directed_acyclic_graph(order):
+    order = closure_order(closures)
+    if order is None:
         raise IllPosedError("position_loop", "the position closures of "
                             + ", ".join(sorted({o for _s, _r, o in closures})) + " need each other in a circle",
                             "build the mechanism in structural order (each group anchored on bodies determined "
                             "before it)")
     blocks = []
-    for k in nx.topological_sort(order):
+    for k in order:
         states, residuals, owner = closures[k]
         res = [sp.sympify(r).xreplace(closed) for r in residuals]
         blocks.append(Block("newton", [closed[s] for s in states], None, res, [owner] * len(res),

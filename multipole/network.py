@@ -19,7 +19,7 @@ import networkx as nx
 import sympy as sp
 
 from .domains import Domain, bundle
-from .errors import IllPosedError, ModelError
+from .errors import ModelError
 from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive, Relation, negative, plain_sum
 from .stages import bulk
 
@@ -253,6 +253,7 @@ class FlatNetwork:
     #: the position graph: primitive port path -> owner of the position it provides, and
     #: primitive port path of a read -> (owner that reads it, providing owner or None: the frame)
     position_providers: dict = field(default_factory=dict)
+    position_states: dict = field(default_factory=dict)    # owner -> states its provided positions use
     position_reads: dict = field(default_factory=dict)
     position_problems: list = field(default_factory=list)   # PositionProblem, worded by multipole.checks
     graph: nx.Graph = field(default_factory=nx.Graph)
@@ -478,51 +479,56 @@ class _Flattener:
         """Replace every position read by the expression of the one element that determines the
         position of its node (or the read's default where the port is not connected), then the states'
         initial values that refer to other states by those states' initial values."""
-        if not self.reads:
+        if not self.reads and not self.positions:
             return
         node_of = {p: n for n in self.flat.nodes for p in n.ports}
+        fl = self.flat
+        states = {s.symbol for s in fl.states}
         provider: dict = {}
         for pp, (expr, owner) in self.positions.items():
+            fl.position_providers[pp] = owner
+            fl.position_states.setdefault(owner, set()).update(
+                v for v in expr.free_symbols if v not in self.reads and v in states)
             node = node_of[pp]
-            if node.name in provider:
-                other = provider[node.name][2]
-                raise IllPosedError("position_overdetermined",
-                                    f"{other} and {owner} both determine the {_component(pp)} of the node "
-                                    f"{node.name}: the loop they close is over-constrained (a passive "
-                                    "constraint: its joint forces are indeterminate)",
-                                    f"join an output of {owner} to an anchor (an input) of a following element "
-                                    "instead of to another output, or remove the redundant element")
+            if node.name in provider:        # two outputs joined: reported by the check, the first one kept
+                fl.position_problems.append(PositionProblem("position_overdetermined",
+                                                            [provider[node.name][2], owner],
+                                                            [provider[node.name][0], pp]))
+                continue
             provider[node.name] = (pp, expr, owner)
         resolved: dict = {}
+        looped: set = set()
 
         def value(ph, stack):
             if ph in resolved:
                 return resolved[ph]
             pp, default, owner = self.reads[ph]
-            if ph in stack:
-                raise IllPosedError("position_loop", f"the position {_component(pp)} read by {owner} depends on "
-                                    "itself through a closed chain of elements",
-                                    "build the mechanism in structural order: every element's anchors on "
-                                    "bodies that elements before it determine (no group of class 3 or higher)")
+            if ph in stack:                  # reported by the check; the frame pose stands in meanwhile
+                cycle = stack[stack.index(ph):]
+                if frozenset(self.reads[c][2] for c in cycle) not in looped:
+                    looped.add(frozenset(self.reads[c][2] for c in cycle))
+                    fl.position_problems.append(PositionProblem(
+                        "position_loop", list(dict.fromkeys(self.reads[c][2] for c in cycle)),
+                        [self.reads[c][0] for c in cycle]))
+                return default
             node = node_of[pp]
             prov = provider.get(node.name)
+            fl.position_reads[pp] = (owner, None if prov is None else prov[2], default)
             if prov is None and len(node.ports) > 1:
-                raise IllPosedError("position_undetermined", f"no element determines the {_component(pp)} of "
-                                    f"{node.name} that {owner} reads",
-                                    "join the port to an output port of a moving element, or leave it "
-                                    "unconnected to fix it to the frame")
+                fl.position_problems.append(PositionProblem("position_undetermined", [owner], [pp]))
             expr = default if prov is None else prov[1]
-            subs = {s: value(s, stack | {ph}) for s in expr.free_symbols if s in self.reads}
+            subs = {s: value(s, stack + (ph,)) for s in expr.free_symbols if s in self.reads}
             resolved[ph] = expr.xreplace(subs) if subs else expr
             return resolved[ph]
 
         for ph in self.reads:
-            value(ph, frozenset())
-        fl = self.flat
+            value(ph, ())
         for eq in fl.equations:
             if eq.expr.free_symbols & resolved.keys():
                 eq.expr = eq.expr.xreplace(resolved)
         fl.closures = [(st, [sp.sympify(r).xreplace(resolved) for r in res], owner) for st, res, owner in fl.closures]
+        fl.conditions = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.conditions]
+        fl.guards = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.guards]
         fl.quantities = {k: (sp.sympify(e).xreplace(resolved), u, d) for k, (e, u, d) in fl.quantities.items()}
         fl.sketches = [(o, sk, [tuple(sp.sympify(v).xreplace(resolved) for v in pt) for pt in pts])
                        for o, sk, pts in fl.sketches]
@@ -540,8 +546,26 @@ class _Flattener:
                     changed = True
             if not changed:
                 break
-        else:
-            raise IllPosedError("position_loop", "initial values of states depend on each other in a circle")
+        else:           # only after a position loop, which the check reports
+            fl.position_problems.append(PositionProblem("position_loop", [], [], "initial values of states depend "
+                                                        "on each other in a circle"))
+
+
+def closure_order(closures) -> list | None:
+    """The indices of ``closures`` (``FlatNetwork.closures``) in an order in which every closure's
+    residuals need only the states of closures before it; None if some need each other in a circle
+    (no structural order: a group the closures cannot solve one after the other)."""
+    order = nx.DiGraph()
+    order.add_nodes_from(range(len(closures)))
+    owner_of = {s: k for k, (states, _r, _o) in enumerate(closures) for s in states}
+    for k, (_s, residuals, _o) in enumerate(closures):
+        for r in residuals:
+            for v in sp.sympify(r).free_symbols:
+                if v in owner_of and owner_of[v] != k:
+                    order.add_edge(owner_of[v], k)
+    if not nx.is_directed_acyclic_graph(order):
+        return None
+    return list(nx.topological_sort(order))
 
 
 def _component(pp: str) -> str:
@@ -618,6 +642,9 @@ def flatten(root: Network) -> FlatNetwork:
         ports = child.ports if isinstance(child, Primitive) else child.ports
         for port in ports:
             fl.flat.external_ports[f"{name}.{port}"] = fl.port_path(root, "", f"{name}.{port}")
+    for name, child in root.children.items():
+        for port, kind in (getattr(child, "bundles", None) or {}).items():
+            fl.flat.bundles[f"{name}.{port}"] = kind
     fl.terminate()
     fl.resolve_positions()
     for k, (owner, _sk, pts) in enumerate(fl.flat.sketches):      # drawable as outputs (multipole.drawing)

@@ -124,6 +124,17 @@ def _text(text):
     return lambda: scene(text)
 
 
+def linkage_triggers() -> dict:
+    """The position and closure checks, on the netlists of tests/test_linkage_checks.py."""
+    import test_linkage_checks as lk
+    return {"position_overdetermined": (_text(lk.TWO_OUTPUTS), ["rocker and extra", "join extra.b2"]),
+            "position_loop": (_text(lk.NO_ORDER), ["d1 and d2"]),
+            "position_undetermined": (_text(lk.ANCHOR_TO_ANCHOR), ["no element determines the position of"]),
+            "cannot_assemble": (_text(lk.unreachable(0.6, 0.25)), ["rocker cannot be assembled", "by 0.05 m"]),
+            "redundant_closure": (lk.redundant_closure_scene, ["rocker: only 0 of its 1"]),
+            "mobility": (_text(lk.FOURBAR), ["crank (DAN", "rocker (DDD"])}
+
+
 #: code -> (scene, words the message or fix must contain: the user's names for what went wrong)
 TRIGGERS = {
     "powerless_source": (_text(OPEN_GROUND), ["supply", "supply.n", "connect supply.n to ground"]),
@@ -141,6 +152,7 @@ TRIGGERS = {
     "algebraic_loop": (_file(DIAGRAMS / "hard" / "nonlinear_loop.yaml"), ["d_1", "d_2"]),
     "unconnected_port": (_text(OPEN_GROUND), ["supply.n"]),
     "degrees_of_freedom": (_file(DIAGRAMS / "weber" / "dc_motor.yaml"), ["motor.inertia.p"]),
+    **linkage_triggers(),
 }
 
 #: codes no netlist can reach today; each is rendered from a finding planted on a real scene instead

@@ -69,6 +69,9 @@ def test_cli_export_writes_an_fmu_that_fmpy_validates(tmp_path, capsys):
     assert var["c_shaft"].causality == "parameter" and "shaft.c" in var["c_shaft"].description
     assert (var["rotor.omega"].unit, var["rotor.omega"].causality) == ("rad/s", "output")
     assert var["shaft.force"].unit == "N*m"
+    # nominals atol/rtol of the scene (atol 1e-9 by default, rtol 1e-8): FMPy's absolute tolerance
+    # rtol·nominal then equals the scene's
+    assert float(var["rotor.p"].nominal) == pytest.approx(1e-9 / 1e-8, rel=1e-12)
     units = {u.name: u.baseUnit for u in md.unitDefinitions}
     assert (units["N*m"].kg, units["N*m"].m, units["N*m"].s) == (1, 2, -2)
     assert [d.variable.name for d in md.derivatives] == [f"der({s})" for s in ("rotor.p", "shaft.q", "load.p")]
@@ -92,7 +95,8 @@ def test_fmu_trajectories_converge_to_multipole_simulate(name, what, tmp_path):
     path = _export(sc, tmp_path)
     worst = {}
     for rtol in (1e-8, 1e-12):
-        ref = pipeline.run(sc, rtol=rtol, atol=rtol * 1e-2, progress=False)
+        # the same error control on both sides: FMPy's absolute tolerance is rtol × the FMU's nominals
+        ref = pipeline.run(sc, rtol=rtol, atol=rtol * fmu.nominal(sc), progress=False)
         outputs = list(ref.outputs)
         got = fmpy.simulate_fmu(str(path), stop_time=ref.t[-1], output_interval=ref.t[1] - ref.t[0],
                                 relative_tolerance=rtol, output=outputs, record_events=False)

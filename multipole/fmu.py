@@ -200,9 +200,8 @@ class CWriter(codegen.Writer):
     """The kernel's code writer with C output and the parameters kept as symbols (tunable)."""
 
     def __init__(self, eq: Equations):
-        super().__init__(eq)
-        self.pvals, self.values = {}, {}          # nothing folded in: parameters stay tunable
         self.params = list(eq.params)
+        super().__init__(eq, runtime=self.params)     # nothing folded in: parameters stay tunable
         names = {s: "v_" + n for s, n in self.names.items() if s is not T}   # never a C keyword
         taken = set(names.values()) | {"t"}
         for k, p in enumerate(self.params):

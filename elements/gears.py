@@ -35,8 +35,8 @@ import math
 
 import sympy as sp
 
-from multipole import (LAW_Q, TF, C, ModelError, Network, Param, Primitive, Quantity, R, Tap, element, junction_a,
-                       junction_b)
+from multipole import (LAW_Q, TF, C, ModelError, Network, Param, Primitive, Quantity, R, Reduction, Tap, element,
+                       junction_a, junction_b)
 
 from .basic import inertia
 
@@ -187,6 +187,33 @@ SPUR_PARAMS = [
 ]
 
 
+def _spur_level(entry: dict, level: str) -> dict | None:
+    """A spur_stage netlist entry moved to the simpler ``level`` (``multipole reduce``): from
+    normal to elastic, the circumferential mesh stiffness and damping are the normal ones projected
+    on the circumference, ``c = c_n·cos²(alpha)`` and ``d·cos²(alpha)`` (the normal deflection is
+    the circumferential one times cos(alpha), the circumferential force the normal one times
+    cos(alpha)); None where alpha is not a number."""
+    out = dict(entry)
+    if level == "elastic" and entry.get("level") == "normal":
+        alpha = entry.get("alpha", math.radians(20.0))
+        if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or entry.get("c_n") is None:
+            return None
+        k = math.cos(alpha) ** 2
+        for name, to in (("c_n", "c"), ("d", "d")):
+            value = entry.get(name)
+            if value is not None:
+                out[to] = value * k if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                    else f"({value})*{k!r}"
+    return out
+
+
+#: parameters that belong only to the levels above each simpler level (removed when dropping to it)
+_NORMAL_ONLY = ("c_n", "mu", "d_t", "s", "alpha", "v_reg")
+_SPUR_REDUCTION = Reduction("level", level="level", levels=("normal", "elastic", "ideal"),
+                            drop=(("elastic", _NORMAL_ONLY), ("ideal", _NORMAL_ONLY + ("c", "d", "x0", "z1", "phase0"))),
+                            adapt=_spur_level)
+
+
 # -- the spur gear stage -----------------------------------------------------------------------
 
 def default_contact_position(r1, alpha, z1):
@@ -209,7 +236,8 @@ def default_contact_position(r1, alpha, z1):
           "sliding_velocity": "m/s: sliding velocity of flank 1 relative to flank 2 (normal)",
           "friction_force": "N: tooth friction force against the sliding of flank 1 (normal)",
           "loss": "W: friction loss F_t*v_t >= 0 (normal)",
-          "contact_position": "m: contact point on the line of action from the pitch point (normal)"})
+          "contact_position": "m: contact point on the line of action from the pitch point (normal)"},
+         reductions=(_SPUR_REDUCTION,))
 def spur_stage(r1, r2, level, internal, c, c_n, d, x0, z1, phase0, alpha, s, mu, v_reg, d_t):
     """Build the spur gear stage multipole (see the module docstring for the structure).
 

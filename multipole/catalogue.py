@@ -27,8 +27,10 @@ class Reduction:
     * ``join``: the element is replaced by a rigid joint of these ports (their nodes merge): a
       spring made rigid, a body made massless;
     * ``level`` and ``levels``: the parameter naming a fidelity level and the levels from the most
-      detailed to the simplest (the element drops to the next level; ``drop`` lists parameters
-      that belong to the levels left behind and are removed with them);
+      detailed to the simplest (the element may drop to any simpler level); ``drop`` pairs a level
+      with the parameters to remove when dropping to it (they belong to the levels left behind),
+      and ``adapt(entry, level)``, if given, returns the element's netlist entry (a dict) with the
+      parameters the simpler level needs worked out from the detailed ones (None: not offered);
     * neither: the element is removed and its ports are left open (a negligible damper).
 
     ``action`` is the word the report uses (``rigid``, ``massless``, ``removed``, ``level``).
@@ -38,7 +40,8 @@ class Reduction:
     join: tuple = ()
     level: str = ""
     levels: tuple = ()
-    drop: tuple = ()
+    drop: tuple = ()                  # ((level, (parameter, ...)), ...)
+    adapt: Callable | None = None
 
 
 @dataclass

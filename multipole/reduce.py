@@ -136,26 +136,13 @@ class Report:
         return "\n".join(lines) + "\n"
 
     def plot(self, path=None):
-        """The outputs of the full and the reduced model over time, one panel each."""
-        import matplotlib.pyplot as plt
-        n = len(self.outputs)
-        fig, axes = plt.subplots(n, 1, figsize=(8, 1.9 * n + 1.2), sharex=True, squeeze=False)
-        for ax, name in zip(axes[:, 0], self.outputs):
-            ax.plot(self.full.t, self.full.outputs[name], lw=2.2, color="0.7", label="full")
-            ax.plot(self.reduced.t, self.reduced.outputs[name], lw=1.0, ls="--", color="C0", label="reduced")
-            unit = self.full.units.get(name, "")
-            ax.set_ylabel(f"{name}\n[{unit}]" if unit else name, rotation=0, ha="right", va="center", fontsize=9)
-            ax.grid(alpha=0.3)
-        axes[0, 0].legend(fontsize=8, loc="best")
-        axes[-1, 0].set_xlabel("t [s]")
-        fig.suptitle(f"{self.scene}: full ({self.states_full} states) vs reduced ({self.states_reduced} states), "
-                     f"error {self.error:.2g} (tol {self.tol:g})", fontsize=10)
-        fig.tight_layout()
-        if path:
-            with atomic_output(path) as tmp:
-                fig.savefig(tmp, dpi=110, format="png")
-            plt.close(fig)
-        return fig
+        """The outputs of the full and the reduced model over time, one panel each
+        (:func:`multipole.plotting.time_plot`)."""
+        from .plotting import time_plot
+        title = (f"{self.scene}: full ({self.states_full} states) vs reduced ({self.states_reduced} states), "
+                 f"output error {self.error:.2g} (tol {self.tol:g})")
+        footer = self.summary()
+        return time_plot({"full": self.full, "reduced": self.reduced}, path, title, footer)
 
     def write(self, folder) -> list:
         """``report.md``, ``report.csv`` and ``outputs.png`` in ``folder`` (created); the paths."""
@@ -189,9 +176,10 @@ def _ports_of(data: dict, element: str) -> list:
             if isinstance(ref, str) and ref.rsplit(".", 1)[0] == element]
 
 
-def apply(data: dict, element: str, red: Reduction) -> dict | None:
-    """A copy of the netlist ``data`` with ``red`` applied to ``element``; None where it does not
-    apply (connections not written as lists of ``element.port``, a level already the simplest)."""
+def apply(data: dict, element: str, red: Reduction, target: str | None = None) -> dict | None:
+    """A copy of the netlist ``data`` with ``red`` applied to ``element`` (a level reduction: to the
+    level ``target``); None where it does not apply (connections not written as lists of
+    ``element.port``, the element not at a more detailed level than ``target``)."""
     conns = data.get("connections")
     if not isinstance(conns, list) or not all(isinstance(g, list) for g in conns):
         return None
@@ -199,12 +187,17 @@ def apply(data: dict, element: str, red: Reduction) -> dict | None:
     entry = new["elements"][element]
     if red.level:
         levels = list(red.levels)
-        current = entry.get(red.level, levels[0]) if isinstance(entry, dict) else None
-        if current not in levels or levels.index(current) + 1 >= len(levels):
+        current = entry.get(red.level) if isinstance(entry, dict) else None
+        if current not in levels or target not in levels or levels.index(target) <= levels.index(current):
             return None
-        entry[red.level] = levels[levels.index(current) + 1]
-        for name in red.drop:
+        if red.adapt is not None:
+            entry = red.adapt(dict(entry), target)
+            if entry is None:
+                return None
+        entry[red.level] = target
+        for name in dict(red.drop).get(target, ()):
             entry.pop(name, None)
+        new["elements"][element] = entry
         return new
     groups = new["connections"]
     mine = {f"{element}.{p}" for p in red.join}
@@ -330,34 +323,28 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     wall_full = float(timed.stats.get("wall_time") or 0.0)
     types = catalogue()
     observed = {o.split(".")[0] for o in outputs}
-    locked = sorted(e for e in full_scene.element_types if e in observed and types[full_scene.element_types[e]].reductions)
-    candidates = [(e, red) for e, t in full_scene.element_types.items() if e not in observed
-                  for red in types[t].reductions]
-    candidates.sort(key=lambda c: shares.get(c[0], 0.0))
-    steps, current, best, states_now, tried = [], data, timed, len(timed.state_names), 0
-    error_now = 0.0
-    total = len(candidates)
+    locked = sorted(e for e in full_scene.element_types if e in observed
+                    and any(not r.level for r in types[full_scene.element_types[e]].reductions))
+    steps, current, best, states_now, error_now = [], data, timed, len(timed.state_names), 0.0
+    broken, rejected = set(), set()       # could not run (not retried); too large an error (retried after a change)
     changed = True
-    while changed and candidates:
+    while changed:
         changed = False
-        for element, red in list(candidates):
-            tried += 1
-            bar.show(min(tried, total), total, f"{element} {red.action}")
-            if element not in current.get("elements", {}):
-                candidates.remove((element, red))
-                continue
-            edited = apply(current, element, red)
+        todo = [c for c in _candidates(current, types, observed, shares) if c not in broken and c not in rejected]
+        for k, (element, red, target) in enumerate(todo):
+            bar.show(k, len(todo), f"{element} {red.action}")
+            edited = apply(current, element, red, target)
             if edited is None:
+                broken.add((element, red, target))
                 continue
-            step = Step(element, full_scene.element_types[element], shares.get(element, 0.0),
-                        _action(current, element, red), False, states_now, None, None, wall_full, None)
+            step = Step(element, str(current["elements"][element].get("type")), shares.get(element, 0.0),
+                        _action(current, element, red, target), False, states_now, None, None, wall_full, None)
+            steps.append(step)
             try:
-                reduced_scene = loads(dump(edited), path)
-                result = _run(reduced_scene, outputs)
+                result = _run(loads(dump(edited), path), outputs)
             except MultipoleError as exc:
                 step.note = f"{exc.code}: {exc.message}"[:160]
-                steps.append(step)
-                candidates.remove((element, red))
+                broken.add((element, red, target))
                 continue
             step.states_after = len(result.state_names)
             step.error = output_error(full, result, outputs)
@@ -365,13 +352,11 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
             step.accepted = step.error <= tol
             if not step.accepted:
                 step.note = f"error {step.error:.3g} > tol {tol:g}"
-            steps.append(step)
-            candidates.remove((element, red))
-            if step.accepted:
-                current, best, states_now, error_now, changed = edited, result, step.states_after, step.error, True
-                candidates = [c for c in candidates if c[0] in current["elements"]] + \
-                    [c for c in _retry(steps, current)]
-                break
+                rejected.add((element, red, target))
+                continue
+            current, best, states_now, error_now, changed = edited, result, step.states_after, step.error, True
+            rejected.clear()
+            break
     bar.close()
     header = (f"reduced by multipole reduce from {Path(path).name} at tol {tol:g} on {', '.join(outputs)}: "
               + ("; ".join(f"{s.element} {s.action}" for s in steps if s.accepted) or "nothing simplified")
@@ -379,32 +364,37 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     if any(s.accepted for s in steps):
         current = dict(current)
         current.pop("reference", None)        # it describes the full model
-    text = dump(current, header)
+        text = dump(current, header)
+    else:
+        text = Path(path).read_text(encoding="utf-8")     # unchanged: the user's file as it is
     reduced_scene = loads(text, path)
     report = Report(full_scene.name, tol, outputs, shares, steps, text, timed, best, len(timed.state_names),
                     states_now, error_now, locked)
     return reduced_scene, report
 
 
-def _retry(steps, current) -> list:
-    """Candidates rejected because they could not run (an ill-posed edit) are not retried; those
-    rejected for their error are retried after a later edit (it may have made them harmless)."""
-    types = catalogue()
+def _candidates(data: dict, types: dict, observed: set, shares: dict) -> list:
+    """``[(element, Reduction, target level or None)]`` the netlist ``data`` offers, least active
+    element first; an element named by an output is only offered a simpler level.  A level reduction gives one candidate
+    per simpler level, the nearest first."""
     out = []
-    for s in steps:
-        if not s.accepted and s.error is not None and s.element in current["elements"]:
-            entry = current["elements"][s.element]
-            kind = entry.get("type") if isinstance(entry, dict) else None
-            out += [(s.element, red) for red in types[kind].reductions if kind in types] if kind else []
-    return list(dict.fromkeys(out))
+    for element, entry in data.get("elements", {}).items():
+        kind = types.get(entry.get("type")) if isinstance(entry, dict) else None
+        if kind is None:
+            continue
+        for red in kind.reductions:
+            if element in observed and not red.level:
+                continue                # it would disappear; a simpler level may still offer the output
+            if not red.level:
+                out.append((element, red, None))
+            elif entry.get(red.level) in red.levels:
+                levels = list(red.levels)
+                out += [(element, red, t) for t in levels[levels.index(entry[red.level]) + 1:]]
+    return sorted(out, key=lambda c: shares.get(c[0], 0.0))     # stable: the nearest level first
 
 
-def _action(data, element, red: Reduction) -> str:
-    if red.level:
-        entry = data["elements"][element]
-        current = entry.get(red.level, red.levels[0])
-        return f"level {current} -> {red.levels[list(red.levels).index(current) + 1]}"
-    return red.action
+def _action(data, element, red: Reduction, target) -> str:
+    return f"level {data['elements'][element][red.level]} -> {target}" if red.level else red.action
 
 
 def cmd_reduce(args) -> int:

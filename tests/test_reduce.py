@@ -131,3 +131,36 @@ def test_element_library_declares_reductions_the_kernel_checks():
         ElementType("bad", lambda c: None, "bad", {"a": "port a"}, [Param("c")],
                     reductions=(Reduction("rigid", join=("a", "zz")),))
     assert exc.value.code == "bad_element_type"
+
+
+SPUR = ROOT / "diagrams" / "weber" / "spur_normal.yaml"
+
+
+def test_gear_with_negligible_friction_drops_a_level():
+    reduced, report = reduce(SPUR, tol=1e-3, outputs=["pinion.omega", "wheel.omega"], progress=False,
+                             overrides={"mesh.mu": "1e-5"})
+    level = [s for s in report.accepted if s.element == "mesh"]
+    assert level and level[0].action == "level normal -> elastic"      # the nearest simpler level first
+    assert reduced.element_types["mesh"] == "spur_stage" and "load" in reduced.element_types
+    entry = yaml.safe_load(report.text)["elements"]["mesh"]
+    assert entry["level"] in ("elastic", "ideal") and "mu" not in entry and "c_n" not in entry
+    assert report.error <= 1e-3
+
+
+def test_gear_whose_losses_are_observed_keeps_normal():
+    reduced, report = reduce(SPUR, tol=1e-3, outputs=["pinion.omega", "wheel.omega", "mesh.loss"], progress=False)
+    assert not report.accepted
+    mesh = [s for s in report.steps if s.element == "mesh"]
+    assert mesh and all(not s.accepted for s in mesh)
+    assert report.text == SPUR.read_text()                  # unchanged: the user's file as it is
+
+
+def test_spur_elastic_level_projects_the_normal_stiffness():
+    red = catalogue()["spur_stage"].reductions[0]
+    alpha = 0.3
+    entry = {"type": "spur_stage", "level": "normal", "c_n": 2.0e8, "d": 100.0, "alpha": alpha, "mu": 0.05}
+    moved = red.adapt(entry, "elastic")
+    # normal deflection = circumferential deflection * cos(alpha), circumferential force = normal * cos(alpha)
+    assert moved["c"] == pytest.approx(2.0e8 * math.cos(alpha) ** 2, rel=1e-15)
+    assert moved["d"] == pytest.approx(100.0 * math.cos(alpha) ** 2, rel=1e-15)
+    assert red.adapt({**entry, "alpha": "a"}, "elastic") is None

@@ -25,9 +25,11 @@ Reference: ``docs/linkages.md``.
 """
 from __future__ import annotations
 
+import networkx as nx
 import sympy as sp
 
-from multipole import MTF, Closure, I, Network, Param, Quantity, Se, Sketch, element, junction_b
+from multipole import (MTF, Closure, Diagnostic, I, Network, Param, Quantity, Se, Sketch, element, junction_b,
+                       position_graph, register_check)
 
 _cos, _sin = sp.cos, sp.sin
 
@@ -245,3 +247,38 @@ def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
                    fixed=("a1.x", "a1.y", "a1.phi", "a2.x", "a2.y", "a2.phi"), closures=[closure],
                    sketch=[Sketch([(xa1, ya1), (xa1 + L1 * _cos(p1), ya1 + L1 * _sin(p1))], ["", "P"]),
                            Sketch([(xa2, ya2), (xa2 + L2 * _cos(p2), ya2 + L2 * _sin(p2))], ["P2", ""])])
+
+
+# ---------------------------------------------------------------------------------------------
+# the VDI 2729 reading of a mechanism (a check of the element library, registered in the kernel)
+
+#: module -> (what it is, moving links it adds, joints it adds, Assur class; 0: a point on a known plane)
+VDI_MODULES = {"DAN": ("rotary drive", 1, 1, 1), "SAN": ("linear drive", 1, 1, 1),
+               "FGP": ("link-point guide", 0, 0, 0),
+               **{k: ("dyad", 2, 3, 2) for k in ("DDD", "DDS", "DSD", "SSD", "SDS")}}
+
+
+@register_check("vdi_structure", "info",
+                "a mechanism of VDI 2729 modules: the modules in structural order with their Assur classes, "
+                "Grübler's mobility F = 3(n - 1) - 2g and whether it equals the number of drives (forced motion)")
+def vdi_structure(ctx):
+    kinds = {el: ctx.flat.elements.get(el) for el in ctx.flat.elements}
+    g = position_graph(ctx.flat)
+    modules = [el for el in g.nodes if kinds.get(el) in VDI_MODULES]
+    if not modules or ctx.flat.position_problems or not nx.is_directed_acyclic_graph(g):
+        return                          # no modules, or the position checks report what is wrong
+    order = [el for el in nx.topological_sort(g) if el in modules]
+    n = 1 + sum(VDI_MODULES[kinds[el]][1] for el in order)
+    joints = sum(VDI_MODULES[kinds[el]][2] for el in order)
+    drives = sum(VDI_MODULES[kinds[el]][3] == 1 for el in order)
+    F = 3 * (n - 1) - 2 * joints
+    steps = []
+    for el in order:
+        what, _links, _joints, cls = VDI_MODULES[kinds[el]]
+        steps.append(f"{el} ({kinds[el]}: {what}" + (f", class {cls}" if cls else "") + ")")
+    verdict = "forced motion" if F == drives else \
+        f"not forced: {F - drives} more drive(s) needed" if F > drives else \
+        f"over-constrained by {drives - F}"
+    yield Diagnostic("vdi_structure",
+                     f"VDI 2729: {' -> '.join(steps)}; n = {n} links with the frame, g = {joints} joints: "
+                     f"F = 3(n - 1) - 2g = {F}, {drives} drive(s): {verdict}", elements=order)

@@ -132,7 +132,8 @@ def linkage_triggers() -> dict:
             "position_undetermined": (_text(lk.ANCHOR_TO_ANCHOR), ["no element determines the position of"]),
             "cannot_assemble": (_text(lk.unreachable(0.6, 0.25)), ["rocker cannot be assembled", "by 0.05 m"]),
             "redundant_closure": (lk.redundant_closure_scene, ["rocker: only 0 of its 1"]),
-            "mobility": (_text(lk.FOURBAR), ["crank (DAN", "rocker (DDD"])}
+            "mobility": (_text(lk.FOURBAR), ["crank (DAN", "rocker (DDD"]),
+            "vdi_structure": (_text(lk.FOURBAR), ["crank (DAN: rotary drive, class 1)"])}
 
 
 #: code -> (scene, words the message or fix must contain: the user's names for what went wrong)

@@ -110,6 +110,41 @@ def test_mobility_of_the_four_bar_is_grueblers_with_the_modules_in_structural_or
            "determines rocker.b1 and rocker.b2" in order
 
 
+FIVE_BAR = """
+name: five_bar
+parameters: {w: 2.0}
+elements:
+  motor1: {type: speed_source, value: w}
+  motor2: {type: speed_source, value: -w}
+  crank1: {type: DAN, l: 0.2, phi0: 1.2}
+  crank2: {type: DAN, l: 0.2, phi0: 1.9, x1: 0.7}
+  dyad: {type: DDD, l1: 0.6, l2: 0.6, K: 1}
+connections:
+  - [motor1.p, crank1.drive]
+  - [motor2.p, crank2.drive]
+  - [crank1.b, dyad.a1]
+  - [crank2.b, dyad.a2]
+"""
+
+
+@pytest.mark.parametrize("text, links, joints, drives", [(FOURBAR, 3, 4, 1), (FIVE_BAR, 4, 5, 2)],
+                         ids=["four-bar", "five-bar"])
+def test_the_vdi_reading_counts_links_joints_and_drives(text, links, joints, drives):
+    """Counted by hand: the four-bar has crank, coupler and rocker on four revolute joints; the
+    five-bar two cranks and a dyad of two links on five."""
+    [d] = found(text, "vdi_structure")
+    F = 3 * links - 2 * joints
+    assert f"n = {links + 1} links with the frame, g = {joints} joints: F = 3(n - 1) - 2g = {F}, " \
+           f"{drives} drive(s): forced motion" in d.message
+    assert "(DDD: dyad, class 2)" in d.message and "(DAN: rotary drive, class 1)" in d.message
+    [m] = found(text, "mobility")
+    assert f"mobility F = {F} " in m.message          # the kernel's count from the position graph agrees
+
+
+def test_no_vdi_reading_without_modules_or_with_a_position_error():
+    assert found(TWO_OUTPUTS, "vdi_structure") == [] and found(NO_ORDER, "vdi_structure") == []
+
+
 def test_no_mobility_line_for_a_scene_without_positions():
     assert found("""
         name: plain
@@ -119,6 +154,14 @@ def test_no_mobility_line_for_a_scene_without_positions():
         connections:
           - [drive.p, J.a]
         """, "mobility") == []
+    assert found("""
+        name: plain
+        elements:
+          drive: {type: torque_source, value: 1}
+          J: {type: inertia, J: 0.1}
+        connections:
+          - [drive.p, J.a]
+        """, "vdi_structure") == []
 
 
 # -- 2. over-constrained linkages ----------------------------------------------------------------

@@ -13,7 +13,6 @@ Run:  python benchmarks/sweep_overhead.py [--runs 1000]      (under a minute on 
 from __future__ import annotations
 
 import argparse
-import statistics
 import tempfile
 import textwrap
 import time
@@ -49,27 +48,31 @@ def main() -> None:
     metrics = ["spring.deflection.final", "spring.deflection.max", "body.v.rms", "spring.deflection.settling"]
 
     serial = Study(path, specs, metrics)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     serial.run("serial")
-    t_serial = time.perf_counter() - start
-    # one warm solve of the same model, parameters set as the study sets them
+    t_serial, c_serial = time.perf_counter() - start, time.process_time() - cpu
+    # the same solves without the study around them: every 10th run of the design (a systematic
+    # sample over the whole range: stiffer runs take more steps), parameters set as the study sets them
     group = serial.groups[0]
     model = _worker_model(group.job["source"], group.job["meta"])
     o = serial.options
-    solves = []
-    for k in (0, args.runs // 2, args.runs - 1):
-        for _ in range(5):
-            model.set_parameters(group.vectors[k])     # a fresh run: its stiffness estimate included
-            t0 = time.perf_counter()
-            simulate(model, o["t_end"], o.get("dt_out"), o.get("solver", "auto"), o.get("rtol", 1e-6),
-                     o.get("atol", 1e-9), progress=False)
-            solves.append(time.perf_counter() - t0)
-    solve = statistics.median(solves)
+    sample = range(0, args.runs, 10)
+    t0, cpu = time.perf_counter(), time.process_time()
+    for k in sample:
+        model.set_parameters(group.vectors[k])
+        simulate(model, o["t_end"], o.get("dt_out"), o.get("solver", "auto"), o.get("rtol", 1e-6),
+                 o.get("atol", 1e-9), progress=False)
+    solve = (time.perf_counter() - t0) / len(sample)
+    c_solve = (time.process_time() - cpu) / len(sample)
     per_run = t_serial / args.runs
     print(f"scene: {serial.base.name}, {args.runs} runs, {len(serial.groups)} compile(s) "
           f"({serial.compile_time:.2f} s)")
     print(f"serial: {t_serial:.2f} s, {1e3 * per_run:.2f} ms per run; one solve alone {1e3 * solve:.2f} ms "
           f"-> per-run cost {per_run / solve:.2f}x the solve")
+    print(f"  CPU time of this process: {1e3 * c_serial / args.runs:.2f} ms per run, one solve alone "
+          f"{1e3 * c_solve:.2f} ms -> {c_serial / args.runs / c_solve:.2f}x (less sensitive to other load)")
+    print(f"  (one solve: set_parameters + simulate, mean over {len(sample)} runs of the design; the study's "
+          f"time includes its analysis and code generation)")
 
     process = Study(path, specs, metrics)
     start = time.perf_counter()

@@ -354,6 +354,8 @@ def run_chunk(job: dict, runs: list) -> list:
                               job.get("rtol", 1e-6), job.get("atol", 1e-9), job.get("max_step", math.inf),
                               progress=False)
             row.update(evaluate_metrics(job["metrics"], result.t, result.outputs, job.get("settle_tol", SETTLE_TOL)))
+            if job.get("keep_trajectories"):
+                row["_trajectory"] = (result.t, result.outputs)
             s = result.stats
             row.update({"solver": result.solver, "steps": s.get("steps"), "rejected": s.get("rejected"),
                         "nfev": s.get("nfev"), "njev": s.get("njev"), "nlu": s.get("nlu"),
@@ -533,6 +535,9 @@ class Study:
                              self.path)
         self.groups: list = []
         self.rows: list = []
+        #: run index -> (t [s], {output: values}) when ``keep_trajectories`` (``--keep-trajectories``)
+        self.keep_trajectories = False
+        self.trajectories: dict = {}
         self.interrupted = False
         self.compile_time = 0.0
 
@@ -625,7 +630,7 @@ class Study:
             group.error = str(exc)
             return
         group.job = {"source": model.source, "meta": model.meta, "metrics": self.metrics,
-                     "settle_tol": self.settle_tol, **self.options}
+                     "settle_tol": self.settle_tol, "keep_trajectories": self.keep_trajectories, **self.options}
         for k in group.runs:
             point = self.points[k]
             problem = self._refused(point, runtime)
@@ -709,6 +714,8 @@ class Study:
                 finished, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
                 for f in finished:
                     for row in f.result():
+                        if "_trajectory" in row:
+                            self.trajectories[row["run"]] = row.pop("_trajectory")
                         rows[row["run"]] = row
                         failed += row["status"] != "ok"
                 report()
@@ -773,6 +780,29 @@ class Study:
                 w.writerow(self.columns)
                 for r in self.rows:
                     w.writerow([repr(r[c]) if isinstance(r[c], float) else r[c] for c in self.columns])
+
+    def trajectory_rows(self):
+        """The kept trajectories as rows ``(run, t, output values...)`` in run and time order."""
+        outputs = self.base.outputs
+        for k in sorted(self.trajectories):
+            t, values = self.trajectories[k]
+            for i, ti in enumerate(t):
+                yield (k, float(ti)) + tuple(float(values[o][i]) for o in outputs)
+
+    def trajectories_to_csv(self, path) -> None:
+        """Every kept trajectory in one long table: ``run,t,<outputs>`` (SI units; pandas reads it
+        directly, ``df.set_index(["run", "t"]).to_xarray()`` makes it an xarray Dataset)."""
+        from .files import atomic_output
+        with atomic_output(path) as tmp:
+            with open(tmp, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(["run", "t"] + list(self.base.outputs))
+                w.writerows([repr(v) if isinstance(v, float) else v for v in row] for row in self.trajectory_rows())
+
+    def trajectory_frame(self):
+        """The kept trajectories as a long pandas DataFrame (columns ``run``, ``t``, the outputs)."""
+        import pandas as pd
+        return pd.DataFrame(list(self.trajectory_rows()), columns=["run", "t"] + list(self.base.outputs))
 
     def frame(self):
         """The rows as a pandas DataFrame (pandas is a dependency of multipole)."""
@@ -973,6 +1003,7 @@ def cmd_sweep(args) -> int:
         raise SweepError("bad_design", "--seed needs --samples N", "add --samples N", "command line")
     study = Study(args.file, _sets(args.set), metrics, args.samples, args.seed, {}, args.t_end, args.dt_out,
                   args.solver, args.rtol, args.atol, args.settle_tol)
+    study.keep_trajectories = args.keep_trajectories
     if args.plot_metric and args.plot_metric not in {m.name for m in study.metrics}:
         raise SweepError("unknown_metric", f"--plot-metric {args.plot_metric!r} is not a metric of the study",
                          f"one of {', '.join(m.name for m in study.metrics)}", "command line")
@@ -997,6 +1028,9 @@ def cmd_sweep(args) -> int:
         written.append(out / "runs.parquet")
     except ImportError:
         pass
+    if study.keep_trajectories:
+        study.trajectories_to_csv(out / "trajectories.csv")
+        written.append(out / "trajectories.csv")
     if study.rows and any(r["status"] == "ok" for r in study.rows):
         study.figure(out / "figure.png", args.plot_metric)
         written.append(out / "figure.png")
@@ -1031,6 +1065,8 @@ def add_arguments(p) -> None:
     p.add_argument("--timeout", type=float, default=SCHEDULER_TIMEOUT, help="seconds to wait for the scheduler")
     p.add_argument("-o", "--output", default="sweep_out", help="folder for runs.csv, figure.png, summary.txt")
     p.add_argument("--plot-metric", help="metric of the figure (default: the first)")
+    p.add_argument("--keep-trajectories", action="store_true",
+                   help="also write every run's outputs to trajectories.csv (run, t, outputs)")
     p.add_argument("--yes", action="store_true", help="run a study of more than --confirm runs")
     p.add_argument("--confirm", type=int, default=CONFIRM_RUNS, help="runs allowed without --yes (default 1000)")
     p.add_argument("--t-end", type=float)

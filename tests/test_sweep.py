@@ -338,3 +338,16 @@ def test_cli_unreachable_scheduler_exit_2(oscillator, tmp_path, capsys):
     assert main(["sweep", str(oscillator), "--set", "k=1,2", "--executor", "dask", "--scheduler",
                  "tcp://127.0.0.1:9", "--timeout", "1", "-o", str(tmp_path / "o"), "--quiet"]) == 2
     assert "error[scheduler_unreachable]" in capsys.readouterr().err
+
+
+def test_cli_keeps_trajectories(oscillator, tmp_path):
+    out = tmp_path / "o"
+    assert main(["sweep", str(oscillator), "--set", "k=2,8", "--executor", "serial", "--keep-trajectories",
+                 "--metrics", "spring.deflection.final", "-o", str(out), "--quiet"]) == 0
+    with open(out / "trajectories.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["run", "t", "spring.deflection", "body.v"]
+    assert len(rows) == 2 * 101                          # t = 0, 0.01, ..., 1 for each run
+    for r in rows:
+        c = 2 * (2.0 if r["run"] == "0" else 8.0)        # c2 = 2*k, m = 1
+        assert float(r["spring.deflection"]) == pytest.approx(_q(float(r["t"]), c, 1.0), abs=1e-7)

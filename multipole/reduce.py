@@ -84,11 +84,13 @@ class Report:
 
     @property
     def wall_full(self) -> float:
-        return float(self.full.stats.get("wall_time") or 0.0)
+        """Integration time of the full model [s]: the best of :data:`REPEAT` runs."""
+        return float(self.full.stats.get("best_wall_time") or self.full.stats.get("wall_time") or 0.0)
 
     @property
     def wall_reduced(self) -> float:
-        return float(self.reduced.stats.get("wall_time") or 0.0)
+        """Integration time of the reduced model [s]: the best of :data:`REPEAT` runs."""
+        return float(self.reduced.stats.get("best_wall_time") or self.reduced.stats.get("wall_time") or 0.0)
 
     @property
     def speedup(self) -> float:
@@ -101,7 +103,9 @@ class Report:
         acts = "; ".join(f"{s.element} {s.action}" for s in self.accepted)
         return (f"{self.scene}: {len(self.accepted)} simplification(s) within tol {self.tol:g}: {acts}; states "
                 f"{self.states_full} -> {self.states_reduced}, output error {self.error:.3g}, integration "
-                f"{self.wall_full:.3g} s -> {self.wall_reduced:.3g} s (speed-up {self.speedup:.3g}x)")
+                f"{self.wall_full:.3g} s -> {self.wall_reduced:.3g} s (speed-up {self.speedup:.3g}x; solver "
+                f"{self.full.solver} -> {self.reduced.solver}, steps {self.full.stats.get('steps')} -> "
+                f"{self.reduced.stats.get('steps')})")
 
     ROW = ("step", "element", "type", "activity_share", "action", "accepted", "states_before", "states_after",
            "output_error", "wall_full_s", "wall_reduced_s", "speedup", "note")
@@ -266,6 +270,19 @@ def _run(scene: Scene, outputs, prune: bool = True):
         return pipeline.run(scene, outputs=outputs, progress=False, prune=prune)
 
 
+#: runs timed for the report's full and reduced integration times (the best one counts: the
+#: machine may be busy; the compiled model is reused, so the repeats cost integration only)
+REPEAT = 3
+
+
+def _best_of(scene: Scene, outputs, result):
+    """``result`` with ``stats["best_wall_time"]``: the least wall time of it and REPEAT - 1 more runs."""
+    walls = [float(result.stats.get("wall_time") or 0.0)]
+    walls += [float(_run(scene, outputs).stats.get("wall_time") or 0.0) for _ in range(REPEAT - 1)]
+    result.stats["best_wall_time"] = min(walls)
+    return result
+
+
 class _Bar:
     """A one-line progress bar on stderr (only on a terminal unless asked for)."""
 
@@ -319,8 +336,8 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     bar.show(0, 1, "full model")
     full = _run(full_scene, outputs, prune=False)
     shares = activity(full_scene, full, outputs)
-    timed = _run(full_scene, outputs)             # the integration time of the model simulate runs
-    wall_full = float(timed.stats.get("wall_time") or 0.0)
+    timed = _best_of(full_scene, outputs, _run(full_scene, outputs))     # the model simulate runs
+    wall_full = timed.stats["best_wall_time"]
     types = catalogue()
     observed = {o.split(".")[0] for o in outputs}
     locked = sorted(e for e in full_scene.element_types if e in observed
@@ -368,6 +385,8 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     else:
         text = Path(path).read_text(encoding="utf-8")     # unchanged: the user's file as it is
     reduced_scene = loads(text, path)
+    if best is not timed:
+        best = _best_of(reduced_scene, outputs, best)
     report = Report(full_scene.name, tol, outputs, shares, steps, text, timed, best, len(timed.state_names),
                     states_now, error_now, locked)
     return reduced_scene, report

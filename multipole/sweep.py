@@ -697,10 +697,19 @@ class Study:
                 rate = (time.perf_counter() - start) / max(1, done - pre)
                 progress(done, failed, total, rate * (total - done) if done > pre else math.nan)
         pre = len(rows)
-        pending: set = set()
+        pending: dict = {}                       # future -> the runs of its chunk
         queue = iter(tasks)
         limit = 2 * ex.workers
         interrupted = False
+
+        def lost(runs, exc):
+            """A chunk whose worker could not run it (a worker killed, a cluster gone): its runs
+            are failed rows, the study goes on with the others."""
+            nonlocal failed
+            for k, _ in runs:
+                rows[k] = {"run": k, "status": "failed",
+                           "diagnostic": f"error[worker_failed] {type(exc).__name__}: {exc}"[:300]}
+                failed += 1
         try:
             report()
             while True:
@@ -708,12 +717,23 @@ class Study:
                     task = next(queue, None)
                     if task is None:
                         break
-                    pending.add(ex.executor.submit(run_chunk, *task))
+                    try:
+                        pending[ex.executor.submit(run_chunk, *task)] = task[1]
+                    except (RuntimeError, OSError) as exc:      # a broken pool refuses new work
+                        lost(task[1], exc)
                 if not pending:
                     break
-                finished, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                finished, _ = cf.wait(list(pending), return_when=cf.FIRST_COMPLETED)
                 for f in finished:
-                    for row in f.result():
+                    runs = pending.pop(f)
+                    try:
+                        chunk_rows = f.result()
+                    except KeyboardInterrupt:
+                        raise
+                    except Exception as exc:     # noqa: BLE001 -- the executor's failure, not a run's
+                        lost(runs, exc)
+                        continue
+                    for row in chunk_rows:
                         if "_trajectory" in row:
                             self.trajectories[row["run"]] = row.pop("_trajectory")
                         rows[row["run"]] = row

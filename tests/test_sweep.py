@@ -351,3 +351,27 @@ def test_cli_keeps_trajectories(oscillator, tmp_path):
     for r in rows:
         c = 2 * (2.0 if r["run"] == "0" else 8.0)        # c2 = 2*k, m = 1
         assert float(r["spring.deflection"]) == pytest.approx(_q(float(r["t"]), c, 1.0), abs=1e-7)
+
+
+def test_lost_worker_makes_failed_rows_not_a_crash(oscillator):
+    import concurrent.futures as cf
+    from concurrent.futures.process import BrokenProcessPool
+
+    class Broken(cf.Executor):
+        """Every other chunk's worker dies."""
+        calls = 0
+
+        def submit(self, fn, *args, **kwargs):
+            future = cf.Future()
+            Broken.calls += 1
+            if Broken.calls % 2:
+                future.set_result(fn(*args, **kwargs))
+            else:
+                future.set_exception(BrokenProcessPool("a worker was killed"))
+            return future
+
+    study = Study(oscillator, {"k": "1..4:lin:4"}, metrics=["spring.deflection.final"])
+    rows = study.run(_Executor(Broken(), 1), chunk=1)
+    assert [r["status"] for r in rows] == ["ok", "failed", "ok", "failed"]
+    assert "error[worker_failed] BrokenProcessPool" in rows[1]["diagnostic"]
+    assert rows[2]["spring.deflection.final"] == pytest.approx(_q(1.0, 6.0, 1.0), abs=1e-7)

@@ -93,9 +93,16 @@ class _Graph:
         self.der_reads = [sp.sympify(d).free_symbols for d in eq.derivatives]
         self.input_reads = {u: sp.sympify(e).free_symbols for u, e in eq.inputs.items()}
 
-    def closure(self, seeds, follow_states: bool = True):
-        """``(symbols, blocks, states)`` reached backwards from ``seeds``; with ``follow_states``
-        False a state is reached but its derivative is not followed."""
+    def state_dependent(self) -> set:
+        """The states and every variable computed from a state (one pass in evaluation order)."""
+        out = set(self.state_of)
+        for k, b in enumerate(self.eq.blocks):
+            if self.reads[k] & out:
+                out |= set(b.variables)
+        return out
+
+    def closure(self, seeds):
+        """``(symbols, blocks, states)`` reached backwards from ``seeds``."""
         seen, blocks, states = set(), set(), set()
         todo = list(seeds)
         while todo:
@@ -112,8 +119,7 @@ class _Graph:
                 i = self.state_of[s]
                 if i not in states:
                     states.add(i)
-                    if follow_states:
-                        todo += self.der_reads[i]
+                    todo += self.der_reads[i]
             if s in self.input_reads:
                 todo += self.input_reads[s]
         return seen, blocks, states
@@ -158,11 +164,12 @@ def prune(eq: Equations, outputs) -> tuple[Equations, Pruning]:
         return eq, record
     # protected: switching functions of time alone (a step in a source), so the run restarts at
     # the same instants: the input or block that holds one is kept
+    moving = graph.state_dependent()
     carriers = [([u], [e]) for u, e in eq.inputs.items()] + \
         [(b.variables, b.solution or b.residuals) for b in eq.blocks]
     for variables, exprs in carriers:
         for g in (g for e in exprs for g in switching_functions(sp.sympify(e)) if g.free_symbols):
-            if not graph.closure(g.free_symbols, follow_states=False)[2]:
+            if not g.free_symbols & moving:
                 seeds |= set(variables)
                 break
     all_switches = _switches(eq, range(len(eq.blocks)), eq.inputs)

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from .errors import MultipoleError, RunError
+from .errors import MultipoleError
 from .expressions import parse_expression
 from .netlist import METRIC_KINDS, Scene, load
 
@@ -394,12 +394,14 @@ class _Executor:
     workers: int
     owned: list = field(default_factory=list)      # things to close at the end (client, cluster)
     label: str = ""
+    mine: bool = True                              # False: the caller's executor, left running
 
     def close(self, cancel: bool = False) -> None:
-        try:
-            self.executor.shutdown(wait=not cancel, cancel_futures=cancel)
-        except TypeError:                         # executors without cancel_futures
-            self.executor.shutdown(wait=not cancel)
+        if self.mine:
+            try:
+                self.executor.shutdown(wait=not cancel, cancel_futures=cancel)
+            except TypeError:                     # executors without cancel_futures
+                self.executor.shutdown(wait=not cancel)
         for thing in reversed(self.owned):
             try:
                 thing.close()
@@ -453,7 +455,7 @@ def make_executor(kind="process", workers: int | None = None, scheduler: str | N
     to the CPU count), ``dask`` (a ``LocalCluster`` of ``workers`` processes, or the scheduler at
     ``scheduler``, waiting at most ``timeout`` s for it), or any ``concurrent.futures.Executor``."""
     if isinstance(kind, cf.Executor):
-        return _Executor(kind, workers or os.cpu_count() or 1, label=type(kind).__name__)
+        return _Executor(kind, workers or os.cpu_count() or 1, label=type(kind).__name__, mine=False)
     if workers is not None and workers < 1:
         raise SweepError("bad_option", f"--workers must be at least 1, got {workers}", "", "command line")
     if scheduler and kind != "dask":
@@ -518,6 +520,10 @@ class Study:
         self.specs = [s if isinstance(s, Spec) else parse_spec(n, s) for n, s in specs.items()]
         if not self.specs:
             raise SweepError("bad_design", "nothing to vary", "add --set NAME=SPEC", "command line")
+        if not 0 < settle_tol < 1:
+            raise SweepError("bad_option", f"--settle-tol must be between 0 and 1, got {settle_tol:g}",
+                             "e.g. 0.02 for a 2 % band", "command line")
+        self._params: dict = {}          # swept element parameter -> its catalogue Param
         self.kinds = {s.name: self._classify(s) for s in self.specs}
         self.points = design(self.specs, samples, seed)
         self.metrics = metric_list(self.base, metrics)
@@ -565,7 +571,6 @@ class Study:
         if param is None:
             raise SweepError("unknown_parameter", f"--set {name}: {etype.name} has no parameter {pname!r}",
                              f"parameters of {etype.name}: {', '.join(p.name for p in etype.params)}", self.path)
-        self._params = getattr(self, "_params", {})
         self._params[name] = param
         return "runtime" if spec.numeric and param.kind in _NUMBER_KINDS else "structural"
 
@@ -653,7 +658,7 @@ class Study:
     def _refused(self, point: dict, runtime: list) -> str:
         """Why the loader would refuse a runtime value (an element parameter's own rules), or ''."""
         for n in runtime:
-            param = getattr(self, "_params", {}).get(n)
+            param = self._params.get(n)
             if param is None:
                 continue
             problem = param.problem(float(point[n]))

@@ -54,7 +54,7 @@ from dataclasses import replace
 import sympy as sp
 
 import multipole as mp
-from multipole import CField, I, ModelError, Network, Param, Quantity, element, junction_a, junction_b
+from multipole import CField, I, ModelError, Network, Param, Quantity, Reduction, element, junction_a, junction_b
 
 MAX_STACK = 100      # largest piezo_stack n a netlist may ask for (checked by the loader)
 
@@ -128,6 +128,30 @@ def piezo_element(k_P, delta_P, C_P, m, R) -> Network:
                    doc="Weber Bild 36: piezo element with tip mass and electrode resistance")
 
 
+def _scaled(value, factor: float):
+    """``value`` (a number or a netlist expression) times ``factor``."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return value * factor
+    return f"({value})*{factor!r}"
+
+
+def _lumped(entry: dict, _level=None) -> dict | None:
+    """A piezo_stack netlist entry as one element (``multipole reduce``): n elements in series
+    mechanically and in parallel electrically have, quasi-statically, the stroke, compliance,
+    capacitance and charge of one element with ``n·k_P``, ``n·delta_P``, ``n·C_P`` and ``R/n``; the
+    tip masses (the k-th moves with k/n of the stroke) count with their kinetic energy in that
+    shape, ``m·(n+1)(2n+1)/(6n)``.  None where n is not a literal whole number above 1."""
+    n = entry.get("n")
+    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
+        return None
+    out = dict(entry, n=1)
+    for name, factor in (("k_P", n), ("delta_P", n), ("C_P", n), ("R", 1.0 / n),
+                         ("m", (n + 1) * (2 * n + 1) / (6.0 * n))):
+        if name in entry:
+            out[name] = _scaled(entry[name], factor)
+    return out
+
+
 @element("piezo_stack",
          "piezo stack translator (Weber Bild 38): n piezo_elements, mechanically in series, "
          "electrically in parallel",
@@ -135,7 +159,8 @@ def piezo_element(k_P, delta_P, C_P, m, R) -> Network:
          [replace(p, doc=p.doc + " (of one element)") for p in _PARAMS],
          {"stroke": "m: extension of the stack, the sum of the elements' strokes",
           "force": "N: tension in the base element, (-F0) at mech_a",
-          "charge": "C: charge that entered at elec_a (sum over the elements)", **_TERMINALS})
+          "charge": "C: charge that entered at elec_a (sum over the elements)", **_TERMINALS},
+         reductions=(Reduction("lumped", adapt=_lumped),))
 def piezo_stack(n, k_P, delta_P, C_P, m, R) -> Network:
     """``n`` piezo elements, mechanically in series and electrically in parallel (Weber Bild 38).
 

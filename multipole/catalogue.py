@@ -31,7 +31,9 @@ class Reduction:
       with the parameters to remove when dropping to it (they belong to the levels left behind),
       and ``adapt(entry, level)``, if given, returns the element's netlist entry (a dict) with the
       parameters the simpler level needs worked out from the detailed ones (None: not offered);
-    * neither: the element is removed and its ports are left open (a negligible damper).
+    * ``adapt`` alone: the element's entry becomes ``adapt(entry, None)`` (a chain of identical
+      parts lumped into one; None: not offered);
+    * none of these: the element is removed and its ports are left open (a negligible damper).
 
     ``action`` is the word the report uses (``rigid``, ``massless``, ``removed``, ``level``).
     """

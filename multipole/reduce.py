@@ -203,6 +203,12 @@ def apply(data: dict, element: str, red: Reduction, target: str | None = None) -
             entry.pop(name, None)
         new["elements"][element] = entry
         return new
+    if red.adapt is not None:                 # the element rewritten in place (a chain lumped)
+        entry = red.adapt(dict(entry), None) if isinstance(entry, dict) else None
+        if entry is None:
+            return None
+        new["elements"][element] = entry
+        return new
     groups = new["connections"]
     mine = {f"{element}.{p}" for p in red.join}
     if red.join:
@@ -341,7 +347,7 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     types = catalogue()
     observed = {o.split(".")[0] for o in outputs}
     locked = sorted(e for e in full_scene.element_types if e in observed
-                    and any(not r.level for r in types[full_scene.element_types[e]].reductions))
+                    and any(r.join or not (r.level or r.adapt) for r in types[full_scene.element_types[e]].reductions))
     steps, current, best, states_now, error_now = [], data, timed, len(timed.state_names), 0.0
     broken, rejected = set(), set()       # could not run (not retried); too large an error (retried after a change)
     changed = True
@@ -402,8 +408,8 @@ def _candidates(data: dict, types: dict, observed: set, shares: dict) -> list:
         if kind is None:
             continue
         for red in kind.reductions:
-            if element in observed and not red.level:
-                continue                # it would disappear; a simpler level may still offer the output
+            if element in observed and (red.join or not (red.level or red.adapt)):
+                continue                # it would disappear; a simpler form may still offer the output
             if not red.level:
                 out.append((element, red, None))
             elif entry.get(red.level) in red.levels:

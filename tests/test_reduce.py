@@ -164,3 +164,29 @@ def test_spur_elastic_level_projects_the_normal_stiffness():
     assert moved["c"] == pytest.approx(2.0e8 * math.cos(alpha) ** 2, rel=1e-15)
     assert moved["d"] == pytest.approx(100.0 * math.cos(alpha) ** 2, rel=1e-15)
     assert red.adapt({**entry, "alpha": "a"}, "elastic") is None
+
+
+def test_piezo_stack_observed_at_its_tip_is_lumped():
+    path = ROOT / "diagrams" / "weber" / "piezo_stack.yaml"
+    reduced, report = reduce(path, tol=1e-2, outputs=["piezo.stroke", "load.v"], progress=False)
+    lumped = [s for s in report.accepted if s.element == "piezo"]
+    assert lumped and lumped[0].action == "lumped"
+    assert yaml.safe_load(report.text)["elements"]["piezo"]["n"] == 1
+    assert report.states_reduced < report.states_full
+    assert report.error <= 1e-2
+    assert "piezo lumped" in report.summary() and f"{report.error:.3g}" in report.summary()
+
+
+def test_piezo_stack_lumping_keeps_the_static_stack_laws():
+    red = catalogue()["piezo_stack"].reductions[0]
+    n = 10
+    entry = {"type": "piezo_stack", "n": n, "k_P": 5.0e-9, "delta_P": 1.0e-9, "C_P": 5.0e-8, "m": 5.0e-4, "R": 10.0}
+    one = red.adapt(entry, None)
+    # Weber Bild 38: stroke n*k_P*U, compliance n*delta_P, capacitance n*C_P, electrodes in parallel R/n
+    assert one["n"] == 1
+    assert one["k_P"] == pytest.approx(n * 5.0e-9) and one["delta_P"] == pytest.approx(n * 1.0e-9)
+    assert one["C_P"] == pytest.approx(n * 5.0e-8) and one["R"] == pytest.approx(10.0 / n)
+    # tip masses moving with k/n of the stroke: kinetic energy sum m*(k/n)^2 over k = 1..n
+    assert one["m"] == pytest.approx(5.0e-4 * sum((k / n) ** 2 for k in range(1, n + 1)), rel=1e-12)
+    assert red.adapt({**entry, "n": 1}, None) is None
+    assert red.adapt({**entry, "k_P": "kp"}, None)["k_P"] == "(kp)*10"

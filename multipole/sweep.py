@@ -1049,10 +1049,13 @@ def cmd_sweep(args) -> int:
     written.append(out / "runs.csv")
     try:
         import pyarrow  # noqa: F401 -- only to know whether Parquet can be written
-        study.frame().to_parquet(out / "runs.parquet")
-        written.append(out / "runs.parquet")
     except ImportError:
         pass
+    else:
+        from .files import atomic_output
+        with atomic_output(out / "runs.parquet") as tmp:
+            study.frame().to_parquet(tmp)
+        written.append(out / "runs.parquet")
     if study.keep_trajectories:
         study.trajectories_to_csv(out / "trajectories.csv")
         written.append(out / "trajectories.csv")

@@ -375,3 +375,24 @@ def test_lost_worker_makes_failed_rows_not_a_crash(oscillator):
     assert [r["status"] for r in rows] == ["ok", "failed", "ok", "failed"]
     assert "error[worker_failed] BrokenProcessPool" in rows[1]["diagnostic"]
     assert rows[2]["spring.deflection.final"] == pytest.approx(_q(1.0, 6.0, 1.0), abs=1e-7)
+
+
+def test_cli_parquet_when_pyarrow(oscillator, tmp_path):
+    pd = pytest.importorskip("pandas")
+    pytest.importorskip("pyarrow", reason="pyarrow is not installed: no Parquet table")
+    out = tmp_path / "o"
+    assert main(["sweep", str(oscillator), "--set", "k=2,8", "--executor", "serial",
+                 "--metrics", "spring.deflection.final", "-o", str(out), "--quiet"]) == 0
+    table = pd.read_parquet(out / "runs.parquet")
+    assert list(table["k"]) == [2.0, 8.0]
+    for k, final in zip(table["k"], table["spring.deflection.final"]):
+        assert final == pytest.approx(_q(1.0, 2 * k, 1.0), abs=1e-7)
+
+
+def test_progress_line(capsys):
+    from multipole.sweep import _Bar
+    bar = _Bar(True)
+    bar(3, 1, 8, 12.4)
+    bar.end()
+    err = capsys.readouterr().err
+    assert "runs 3/8, 1 failed, ETA 12 s" in err and err.endswith("\n")

@@ -12,8 +12,9 @@ and the C source under ``sources/``).
   indicators, and at an event (``fmi2NewDiscreteStates``) each switch takes the side its function
   is on (where it is zero, the side it moves to: the rule of :func:`multipole.simulate._sides`).
   Numeric linear loops are solved by a generated call of a small Gaussian elimination with partial
-  pivoting.  The FMI 2.0 API functions are written here (``_RUNTIME``), with our own minimal FMI
-  type definitions.
+  pivoting.  ``fmi2GetDirectionalDerivative`` prints the writer's forward-mode Jacobian plan
+  (:meth:`multipole.codegen.Writer.jacobian_plan`) for the derivatives and the outputs.  The FMI 2.0
+  API functions are written here (``_RUNTIME``), with our own minimal FMI type definitions.
 * **Refusals.** What the C code would not compute exactly as ``multipole simulate`` does is refused
   at export time with an :class:`FmuError` naming the element: nonlinear algebraic loops (Newton's
   method, ``fmu_newton_loop``), tables (``interp``, sympy ``Piecewise``: ``fmu_table``) and any
@@ -27,6 +28,7 @@ parameters it is given to (when they agree).
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import os
@@ -251,21 +253,66 @@ class CWriter(codegen.Writer):
             lines.append(f"    free(A{k}); free(b{k});")
         return lines + [f"    if (bad{k}) return 1;"]
 
+    def c_prologue(self, name: str, doc: str, units, used, target: str, extra_args: str) -> list:
+        """The head of ``static int name(p, t, x[, mode], target)``: the parameters, states and inputs
+        in ``used`` (all of them if None), then the ``units``."""
+        if used is not None:
+            used |= set().union(*(sp.sympify(e).free_symbols for u, e in self.eq.inputs.items() if u in used))
+        lines = [f"/* {doc} */",
+                 f"static int {name}(const double *p, double t, const double *x{extra_args}, double *{target}) {{",
+                 "    (void)p; (void)t; (void)x;"]
+        lines += [f"    const double {self.names[q]} = p[{i}];" for i, q in enumerate(self.params)
+                  if used is None or q in used]
+        lines += [f"    const double {self.names[s]} = x[{i}];" for i, s in enumerate(self.states)
+                  if used is None or s in used]
+        lines += [f"    const double {self.names[u]} = {self.P(e)};" for u, e in self.eq.inputs.items()
+                  if used is None or u in used]
+        for u in units:
+            lines += self.c_unit(u)
+        return lines
+
     def c_function(self, name: str, doc: str, needed, target: str, values, extra_args: str = "") -> list:
         """``static int name(p, t, x[, mode], target)``: the units ``needed`` takes, then
         ``target[i] = values[i]``; returns 1 where a linear loop is singular."""
         units = codegen.closure(self.units, needed)
         used = set(needed).union(*(u.deps for u in units))
-        used |= set().union(*(sp.sympify(e).free_symbols for u, e in self.eq.inputs.items() if u in used))
-        lines = [f"/* {doc} */",
-                 f"static int {name}(const double *p, double t, const double *x{extra_args}, double *{target}) {{",
-                 "    (void)p; (void)t; (void)x;"]
-        lines += [f"    const double {self.names[q]} = p[{i}];" for i, q in enumerate(self.params) if q in used]
-        lines += [f"    const double {self.names[s]} = x[{i}];" for i, s in enumerate(self.states) if s in used]
-        lines += [f"    const double {self.names[u]} = {self.P(e)};" for u, e in self.eq.inputs.items() if u in used]
-        for u in units:
-            lines += self.c_unit(u)
+        lines = self.c_prologue(name, doc, units, used, target, extra_args)
         lines += [f"    {target}[{i}] = {v};" for i, v in enumerate(values)]
+        return lines + ["    return 0;", "}", ""]
+
+    def c_jacobian(self, name: str, doc: str, extra_args: str = "") -> list:
+        """``static int name(p, t, x[, mode], J)``: d(targets)/dx into ``J`` (row-major, one row per
+        target of ``self.eq.derivatives``, one column per state), by the forward-mode plan of the
+        kernel's writer (:meth:`multipole.codegen.Writer.jacobian_plan`); a loop's derivatives
+        ``Dz = -Jz⁻¹ G`` are solved column by column.  Returns 1 where a loop matrix is singular."""
+        plan = self.jacobian_plan()
+        n_x = len(self.states)
+        lines = self.c_prologue(name, doc, plan.units, None, "J", extra_args)
+        for step in plan.steps:
+            if isinstance(step, codegen.Derivative):
+                lines.append(f"    double {step.name} = {step.code};")
+                continue
+            n, m, k = step.jz.shape[0], step.n_columns, step.block
+            arrays = (f"jd_Jz{k}", f"jd_G{k}", f"jd_T{k}", f"jd_c{k}")
+            lines += [f"    double *jd_Jz{k} = (double *)calloc({n * n}, sizeof(double));",
+                      f"    double *jd_G{k} = (double *)calloc({n * m}, sizeof(double));",
+                      f"    double *jd_T{k} = (double *)calloc({n * n}, sizeof(double));",
+                      f"    double *jd_c{k} = (double *)calloc({n}, sizeof(double));",
+                      f"    int jd_bad{k} = jd_Jz{k} == NULL || jd_G{k} == NULL || jd_T{k} == NULL || jd_c{k} == NULL;"]
+            lines.append(f"    if (!jd_bad{k}) {{")
+            lines += [f"        jd_Jz{k}[{i * n + j}] = {self.P(v)};" for (i, j), v in sorted(step.jz.todok().items())]
+            lines += [f"        jd_G{k}[{r_i * m + c}] = {code};" for r_i, c, code in step.g]
+            lines += [f"        for (int col = 0; col < {m} && !jd_bad{k}; col++) {{",
+                      f"            memcpy(jd_T{k}, jd_Jz{k}, {n * n} * sizeof(double));",
+                      f"            for (int i = 0; i < {n}; i++) jd_c{k}[i] = jd_G{k}[i * {m} + col];",
+                      f"            jd_bad{k} = mp_solve({n}, jd_T{k}, jd_c{k});",
+                      f"            for (int i = 0; i < {n}; i++) jd_G{k}[i * {m} + col] = -jd_c{k}[i];",
+                      "        }", "    }"]
+            lines += [f"    double {d} = jd_bad{k} ? 0.0 : jd_G{k}[{zi * m + c}];" for zi, c, d in step.names]
+            lines += ["    " + " ".join(f"free({a});" for a in arrays), f"    if (jd_bad{k}) return 1;"]
+        rows = len(self.eq.derivatives)
+        lines.append(f"    for (int q = 0; q < {rows * n_x}; q++) J[q] = 0.0;")
+        lines += [f"    J[{i * n_x + j}] = {d};" for i, j, d in plan.entries]
         return lines + ["    return 0;", "}", ""]
 
 
@@ -338,6 +385,11 @@ def model_source(eq: Equations, outputs) -> tuple[str, int]:
                             [P(e) for e in out_exprs])
         src += w.c_function("mp_switches", "the switching functions: the event indicators", need_sw, "g",
                             [P(s) for s in sw])
+        w.locked(held)
+        src += w.c_jacobian("mp_jac_derivatives", "d(derivatives)/dx, every switch held on its side",
+                            ", const double *mode")
+        w.locked(None)
+        src += _output_writer(eq, out_exprs).c_jacobian("mp_jac_outputs", "d(outputs)/dx")
         init = ["/* the start values of the states that depend on parameters */",
                 "static void mp_initial(const double *p, double *x) {", "    (void)p; (void)x;"]
         for i, q in enumerate(w.params):
@@ -347,6 +399,18 @@ def model_source(eq: Equations, outputs) -> tuple[str, int]:
                 init.append(f"    x[{i}] = {P(s.initial)};")
         return src + init + ["}", ""]
     return "\n".join(_printed(w, build, "the model")), len(sw)
+
+
+def _output_writer(eq: Equations, out_exprs) -> CWriter:
+    """A writer whose ``eq.derivatives`` are the outputs (each an extra assignment ``y_k = expr``),
+    so that its Jacobian plan is d(outputs)/dx."""
+    w = CWriter(eq)
+    ys = [sp.Symbol(f"_fmu_output{k}") for k in range(len(out_exprs))]
+    for k, (y, e) in enumerate(zip(ys, out_exprs)):
+        w.names[y] = f"y_out{k}"
+        w.units.append(codegen.Unit("assign", [y], [sp.sympify(e)], -1))
+    w.eq = dataclasses.replace(eq, derivatives=ys)
+    return w
 
 
 def _calculated(state) -> bool:
@@ -488,7 +552,7 @@ def model_description(scene, eq: Equations, outputs, identifier: str, guid: str,
              '  generationTool="multipole" variableNamingConvention="flat"'
              f' numberOfEventIndicators="{n_events}">',
              f'  <ModelExchange modelIdentifier="{identifier}" canNotUseMemoryManagementFunctions="true"'
-             ' canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="false"'
+             ' canGetAndSetFMUstate="false" canSerializeFMUstate="false" providesDirectionalDerivative="true"'
              ' needsExecutionTool="false" completedIntegratorStepNotNeeded="true">',
              '    <SourceFiles>', f'      <File name="{identifier}.c"/>', '    </SourceFiles>',
              '  </ModelExchange>']
@@ -563,7 +627,7 @@ def build_source(eq: Equations, outputs, state_nominal: float = 1.0) -> tuple[st
     body, n_events = model_source(eq, outputs)
     x0 = eq.initial_values()
     head = [f"/* FMI 2.0 Model Exchange unit of {eq.name!r}, generated by multipole: do not edit. */",
-            "#include <math.h>", "#include <stddef.h>", "#include <stdlib.h>", "",
+            "#include <math.h>", "#include <stddef.h>", "#include <stdlib.h>", "#include <string.h>", "",
             f"#define MP_NP {len(eq.params)}", f"#define MP_NX {len(eq.states)}", f"#define MP_NY {len(outputs)}",
             f"#define MP_NZ {n_events}", f"#define MP_NOMINAL {_num(state_nominal)}",
             "static const double mp_p_start[MP_NP + 1] = {" + ", ".join(_num(v) for v in eq.params.values())
@@ -978,10 +1042,41 @@ MP_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2
 MP_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *s) {
     (void)s; (void)bytes; (void)size; return mp_fail(mp_get(c, ""), "fmi2DeSerializeFMUstate", "not supported");
 }
+/* The exact partial derivatives of the state derivatives (switches held) and of the outputs by the
+   states (the knowns of Model Exchange: this FMU has no inputs). */
 MP_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
                                                   const fmi2ValueReference k[], size_t nk, const fmi2Real dk[], fmi2Real du[]) {
-    (void)u; (void)nu; (void)k; (void)nk; (void)dk; (void)du;
-    return mp_fail(mp_get(c, ""), "fmi2GetDirectionalDerivative", "not supported");
+    mp_instance *m = mp_get(c, "fmi2GetDirectionalDerivative");
+    const char *fn = "fmi2GetDirectionalDerivative";
+    double *J;
+    int need_d = 0, need_y = 0;
+    size_t i, j;
+    if (m == NULL) return fmi2Error;
+    if (m->phase == MP_INSTANTIATED || m->phase == MP_TERMINATED)
+        return mp_fail(m, fn, "only between fmi2EnterInitializationMode and fmi2Terminate");
+    for (j = 0; j < nk; j++)
+        if (k[j] < MP_VR_STATES || k[j] >= MP_VR_DERS) return mp_fail(m, fn, "the knowns must be states");
+    for (i = 0; i < nu; i++) {
+        if (u[i] >= MP_VR_DERS && u[i] < MP_VR_OUTS) need_d = 1;
+        else if (u[i] >= MP_VR_OUTS && u[i] < MP_VR_END) need_y = 1;
+        else return mp_fail(m, fn, "the unknowns must be state derivatives or outputs");
+    }
+    if (m->phase == MP_INITIALIZATION) { mp_initial(m->p, m->x); mp_sides(m); }
+    J = (double *)calloc((size_t)(MP_NX + MP_NY) * MP_NX + 1, sizeof(double));
+    if (J == NULL) return mp_fail(m, fn, "out of memory");
+    if ((need_d && mp_jac_derivatives(m->p, m->t, m->x, m->mode, J)) ||
+        (need_y && mp_jac_outputs(m->p, m->t, m->x, J + MP_NX * MP_NX))) {
+        free(J);
+        return mp_fail(m, fn, "singular linear loop");
+    }
+    for (i = 0; i < nu; i++) {
+        size_t row = u[i] - MP_VR_DERS;          /* the derivatives' rows, then the outputs' */
+        double s = 0.0;
+        for (j = 0; j < nk; j++) s += J[row * MP_NX + (k[j] - MP_VR_STATES)] * dk[j];
+        du[i] = s;
+    }
+    free(J);
+    return fmi2OK;
 }
 
 /* ---- Model Exchange ---- */

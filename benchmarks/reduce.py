@@ -7,6 +7,7 @@ simplifications kept.  Each scene takes well under a minute on its own:
     python benchmarks/reduce.py stiff      # diagrams/hard/stiff_drive_train.yaml, the two speeds
     python benchmarks/reduce.py spur       # diagrams/weber/spur_normal.yaml, speeds, mu = 1e-5 and 0.05
     python benchmarks/reduce.py chain      # a free chain of stiff springs and masses, observed at its far end
+    python benchmarks/reduce.py piezo      # diagrams/weber/piezo_stack.yaml observed at its tip
 """
 from __future__ import annotations
 
@@ -56,6 +57,9 @@ def main(which) -> None:
             for tol in (1e-2, 1e-3):
                 print(row(f"spur_normal, mu = {mu}", ROOT / "diagrams/weber/spur_normal.yaml", tol,
                           ["pinion.omega", "wheel.omega"], {"mesh.mu": mu}), flush=True)
+    if "piezo" in which:
+        print(row("piezo_stack, n = 10", ROOT / "diagrams/weber/piezo_stack.yaml", 1e-2, ["piezo.stroke", "load.v"]),
+              flush=True)
     if "chain" in which:
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "chain.yaml"
@@ -65,4 +69,4 @@ def main(which) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:] or ["stiff", "spur", "chain"])
+    main(sys.argv[1:] or ["stiff", "spur", "chain", "piezo"])

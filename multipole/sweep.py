@@ -834,6 +834,21 @@ class Study:
         import pandas as pd
         return pd.DataFrame(self.rows, columns=self.columns)
 
+    def label(self, name: str) -> str:
+        """``name [unit]`` for a swept element parameter or a metric of an output with a known SI
+        unit (``settling`` in s), else the name alone."""
+        unit = ""
+        if name in self._params:
+            unit = self._params[name].unit
+        else:
+            output, _, kind = name.rpartition(".")
+            if kind == "settling":
+                unit = "s"
+            elif output in self.base.outputs:
+                meta = next((g.job["meta"] for g in self.groups if g.job is not None), {})
+                unit = meta.get("units", {}).get(output, "")
+        return f"{name} [{unit}]" if unit and unit != "-" else name
+
     def figure(self, path, metric: str | None = None, overlay=None):
         """Metric against parameter (one parameter), a heat map (two parameters on a grid; a
         scatter coloured by the metric for a sampled design), or the metric against each parameter
@@ -865,12 +880,12 @@ class Study:
             else:
                 mesh = ax.scatter([r[a.name] for r in ok], [r[b.name] for r in ok], c=y, s=14, cmap="viridis",
                                   norm=norm)
-            fig.colorbar(mesh, ax=ax, label=metric + (" (log scale)" if log_colour else ""))
+            fig.colorbar(mesh, ax=ax, label=self.label(metric) + (" (log scale)" if log_colour else ""))
             if bad:
                 ax.plot([r[a.name] for r in bad], [r[b.name] for r in bad], "rx", ms=5, label="failed run")
                 ax.legend(loc="upper right")
-            ax.set_xlabel(a.name)
-            ax.set_ylabel(b.name)
+            ax.set_xlabel(self.label(a.name))
+            ax.set_ylabel(self.label(b.name))
             ax.set_xscale("log" if log[a.name] else "linear")
             ax.set_yscale("log" if log[b.name] else "linear")
         else:
@@ -887,8 +902,8 @@ class Study:
                     lo = np.nanmin(y) if np.isfinite(y).any() else 0.0
                     ax.plot([r[s.name] for r in bad], [lo] * len(bad), "rx", ms=6, label="failed run")
                     ax.legend()
-                ax.set_xlabel(s.name)
-                ax.set_ylabel(metric)
+                ax.set_xlabel(self.label(s.name))
+                ax.set_ylabel(self.label(metric))
                 ax.set_xscale("log" if log[s.name] else "linear")
                 ax.grid(True, alpha=0.3)
             ax = axes[0][0]

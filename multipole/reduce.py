@@ -321,6 +321,10 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     with open(path, encoding="utf-8") as fh:
         data = yaml.safe_load(fh)
     for name, value in (overrides or {}).items():       # --set element.param=value, as the loader applies it
+        try:
+            value = float(value) if math.isfinite(float(value)) else value    # a number stays a number
+        except (TypeError, ValueError):
+            pass
         element, _, param = name.partition(".")
         if isinstance(data.get("elements", {}).get(element), dict) and param:
             data["elements"][element][param] = value

@@ -34,6 +34,7 @@ import os
 import re
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -350,9 +351,12 @@ def run_chunk(job: dict, runs: list) -> list:
         try:
             if model.runtime:
                 model.set_parameters(vector)
-            result = simulate(model, job["t_end"], job.get("dt_out"), job.get("solver", "auto"),
-                              job.get("rtol", 1e-6), job.get("atol", 1e-9), job.get("max_step", math.inf),
-                              progress=False)
+            with warnings.catch_warnings(record=True) as caught:      # one per row, not one per run on stderr
+                warnings.simplefilter("always")
+                result = simulate(model, job["t_end"], job.get("dt_out"), job.get("solver", "auto"),
+                                  job.get("rtol", 1e-6), job.get("atol", 1e-9), job.get("max_step", math.inf),
+                                  progress=False)
+            notes = [str(w.message).splitlines()[0] for w in caught] + list(result.stats.get("warnings", []))
             row.update(evaluate_metrics(job["metrics"], result.t, result.outputs, job.get("settle_tol", SETTLE_TOL)))
             if job.get("keep_trajectories"):
                 row["_trajectory"] = (result.t, result.outputs)
@@ -360,7 +364,7 @@ def run_chunk(job: dict, runs: list) -> list:
             row.update({"solver": result.solver, "steps": s.get("steps"), "rejected": s.get("rejected"),
                         "nfev": s.get("nfev"), "njev": s.get("njev"), "nlu": s.get("nlu"),
                         "events": len(result.events), "wall_time": s.get("wall_time")})
-            row["status"], row["diagnostic"] = "ok", ""
+            row["status"], row["diagnostic"] = "ok", (f"warning: {notes[0]}"[:300] if notes else "")
         except KeyboardInterrupt:
             raise
         except MultipoleError as exc:

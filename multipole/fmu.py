@@ -39,7 +39,7 @@ import sys
 import tempfile
 import zipfile
 from pathlib import Path
-from xml.sax.saxutils import escape, quoteattr
+from xml.sax.saxutils import quoteattr
 
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
@@ -341,7 +341,8 @@ def _refuse_unsupported(w: CWriter, eq: Equations, needed) -> None:
                 zero = sorted(str(q) for q in sp.sympify(e).free_symbols if q in values and values[q] == 0)
                 raise FmuError("infinite_value", f"the parameters make a value of element {elements(b.owners)} "
                                "infinite" + (f" ({', '.join(zero)} = 0)" if zero else ""),
-                               "a zero inertia, stiffness or resistance divides; use a node or a rigid coupling instead")
+                               "a zero inertia, stiffness or resistance divides; "
+                               "use a node or a rigid coupling instead")
     for u, e in eq.inputs.items():
         if sp.sympify(e).has(sp.Piecewise):
             raise FmuError("fmu_table", f"element {u.name.split('.')[0]} uses a table (interp), which the FMU "
@@ -846,11 +847,6 @@ static int mp_sides(mp_instance *m) {
 #define MP_VR_OUTS (MP_VR_DERS + MP_NX)
 #define MP_VR_END (MP_VR_OUTS + MP_NY)
 
-static mp_instance *mp_get(fmi2Component c, const char *function) {
-    (void)function;
-    return (mp_instance *)c;
-}
-
 static fmi2Status mp_fail(mp_instance *m, const char *function, const char *what) {
     mp_log(m, fmi2Error, "logStatusError", "%s: %s", function, what);
     return fmi2Error;
@@ -860,8 +856,9 @@ static fmi2Status mp_fail(mp_instance *m, const char *function, const char *what
 MP_EXPORT const char *fmi2GetTypesPlatform(void) { return "default"; }
 MP_EXPORT const char *fmi2GetVersion(void) { return "2.0"; }
 
-MP_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n, const fmi2String categories[]) {
-    mp_instance *m = mp_get(c, "fmi2SetDebugLogging");
+MP_EXPORT fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t n,
+                                         const fmi2String categories[]) {
+    mp_instance *m = (mp_instance *)c;
     (void)n; (void)categories;
     if (m == NULL) return fmi2Error;
     m->logging = loggingOn;
@@ -903,7 +900,7 @@ MP_EXPORT void fmi2FreeInstance(fmi2Component c) {
 
 MP_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined, fmi2Real tolerance,
                                          fmi2Real startTime, fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    mp_instance *m = mp_get(c, "fmi2SetupExperiment");
+    mp_instance *m = (mp_instance *)c;
     (void)toleranceDefined; (void)tolerance;
     if (m == NULL) return fmi2Error;
     if (m->phase != MP_INSTANTIATED) return mp_fail(m, "fmi2SetupExperiment", "only allowed after fmi2Instantiate");
@@ -914,15 +911,16 @@ MP_EXPORT fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceD
 }
 
 MP_EXPORT fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
-    mp_instance *m = mp_get(c, "fmi2EnterInitializationMode");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
-    if (m->phase != MP_INSTANTIATED) return mp_fail(m, "fmi2EnterInitializationMode", "only allowed after fmi2Instantiate");
+    if (m->phase != MP_INSTANTIATED)
+        return mp_fail(m, "fmi2EnterInitializationMode", "only allowed after fmi2Instantiate");
     m->phase = MP_INITIALIZATION;
     return fmi2OK;
 }
 
 MP_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
-    mp_instance *m = mp_get(c, "fmi2ExitInitializationMode");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     if (m->phase != MP_INITIALIZATION) return mp_fail(m, "fmi2ExitInitializationMode", "not in initialization mode");
     mp_initial(m->p, m->x);
@@ -932,14 +930,14 @@ MP_EXPORT fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
 }
 
 MP_EXPORT fmi2Status fmi2Terminate(fmi2Component c) {
-    mp_instance *m = mp_get(c, "fmi2Terminate");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     m->phase = MP_TERMINATED;
     return fmi2OK;
 }
 
 MP_EXPORT fmi2Status fmi2Reset(fmi2Component c) {
-    mp_instance *m = mp_get(c, "fmi2Reset");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     m->phase = MP_INSTANTIATED;
     m->t = 0.0;
@@ -951,7 +949,7 @@ MP_EXPORT fmi2Status fmi2Reset(fmi2Component c) {
 }
 
 MP_EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    mp_instance *m = mp_get(c, "fmi2GetReal");
+    mp_instance *m = (mp_instance *)c;
     double x[MP_NX + 1], dx[MP_NX + 1], y[MP_NY + 1];
     int have_dx = 0, have_y = 0;
     size_t i;
@@ -967,7 +965,8 @@ MP_EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[],
         else if (r < MP_VR_STATES) value[i] = m->p[r - MP_VR_PARAMS];
         else if (r < MP_VR_DERS) value[i] = x[r - MP_VR_STATES];
         else if (r < MP_VR_OUTS) {
-            if (!have_dx && mp_derivatives(m->p, m->t, x, m->mode, dx)) return mp_fail(m, "fmi2GetReal", "singular linear loop");
+            if (!have_dx && mp_derivatives(m->p, m->t, x, m->mode, dx))
+                return mp_fail(m, "fmi2GetReal", "singular linear loop");
             have_dx = 1;
             value[i] = dx[r - MP_VR_DERS];
         } else if (r < MP_VR_END) {
@@ -980,7 +979,7 @@ MP_EXPORT fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[],
 }
 
 MP_EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    mp_instance *m = mp_get(c, "fmi2SetReal");
+    mp_instance *m = (mp_instance *)c;
     size_t i;
     if (m == NULL) return fmi2Error;
     for (i = 0; i < nvr; i++) {
@@ -998,55 +997,45 @@ MP_EXPORT fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[],
     return fmi2OK;
 }
 
-MP_EXPORT fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Integer value[]) {
-    (void)vr; (void)value;
-    return nvr == 0 ? fmi2OK : mp_fail(mp_get(c, "fmi2GetInteger"), "fmi2GetInteger", "the FMU has no Integer variables");
-}
-MP_EXPORT fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Boolean value[]) {
-    (void)vr; (void)value;
-    return nvr == 0 ? fmi2OK : mp_fail(mp_get(c, "fmi2GetBoolean"), "fmi2GetBoolean", "the FMU has no Boolean variables");
-}
-MP_EXPORT fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2String value[]) {
-    (void)vr; (void)value;
-    return nvr == 0 ? fmi2OK : mp_fail(mp_get(c, "fmi2GetString"), "fmi2GetString", "the FMU has no String variables");
-}
-MP_EXPORT fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Integer value[]) {
-    (void)vr; (void)value;
-    return nvr == 0 ? fmi2OK : mp_fail(mp_get(c, "fmi2SetInteger"), "fmi2SetInteger", "the FMU has no Integer variables");
-}
-MP_EXPORT fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Boolean value[]) {
-    (void)vr; (void)value;
-    return nvr == 0 ? fmi2OK : mp_fail(mp_get(c, "fmi2SetBoolean"), "fmi2SetBoolean", "the FMU has no Boolean variables");
-}
-MP_EXPORT fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2String value[]) {
-    (void)vr; (void)value;
-    return nvr == 0 ? fmi2OK : mp_fail(mp_get(c, "fmi2SetString"), "fmi2SetString", "the FMU has no String variables");
-}
+/* The FMU has Real variables only: the other types' functions accept empty lists. */
+#define MP_NO_VARIABLES(function, type, qualifier)                                                   \
+    MP_EXPORT fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,      \
+                                  qualifier type value[]) {                                        \
+        (void)vr; (void)value;                                                                     \
+        return nvr == 0 ? fmi2OK : mp_fail((mp_instance *)c, #function, "the FMU has Real variables only"); \
+    }
+MP_NO_VARIABLES(fmi2GetInteger, fmi2Integer, )
+MP_NO_VARIABLES(fmi2GetBoolean, fmi2Boolean, )
+MP_NO_VARIABLES(fmi2GetString, fmi2String, )
+MP_NO_VARIABLES(fmi2SetInteger, fmi2Integer, const)
+MP_NO_VARIABLES(fmi2SetBoolean, fmi2Boolean, const)
+MP_NO_VARIABLES(fmi2SetString, fmi2String, const)
 
-/* not supported (canGetAndSetFMUstate, canSerializeFMUstate and providesDirectionalDerivative are false) */
+/* not supported (canGetAndSetFMUstate and canSerializeFMUstate are false) */
 MP_EXPORT fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *s) {
-    (void)s; return mp_fail(mp_get(c, ""), "fmi2GetFMUstate", "not supported");
+    (void)s; return mp_fail((mp_instance *)c, "fmi2GetFMUstate", "not supported");
 }
 MP_EXPORT fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate s) {
-    (void)s; return mp_fail(mp_get(c, ""), "fmi2SetFMUstate", "not supported");
+    (void)s; return mp_fail((mp_instance *)c, "fmi2SetFMUstate", "not supported");
 }
 MP_EXPORT fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *s) {
-    (void)s; return mp_fail(mp_get(c, ""), "fmi2FreeFMUstate", "not supported");
+    (void)s; return mp_fail((mp_instance *)c, "fmi2FreeFMUstate", "not supported");
 }
 MP_EXPORT fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate s, size_t *size) {
-    (void)s; (void)size; return mp_fail(mp_get(c, ""), "fmi2SerializedFMUstateSize", "not supported");
+    (void)s; (void)size; return mp_fail((mp_instance *)c, "fmi2SerializedFMUstateSize", "not supported");
 }
 MP_EXPORT fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate s, fmi2Byte bytes[], size_t size) {
-    (void)s; (void)bytes; (void)size; return mp_fail(mp_get(c, ""), "fmi2SerializeFMUstate", "not supported");
+    (void)s; (void)bytes; (void)size; return mp_fail((mp_instance *)c, "fmi2SerializeFMUstate", "not supported");
 }
 MP_EXPORT fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size, fmi2FMUstate *s) {
-    (void)s; (void)bytes; (void)size; return mp_fail(mp_get(c, ""), "fmi2DeSerializeFMUstate", "not supported");
+    (void)s; (void)bytes; (void)size; return mp_fail((mp_instance *)c, "fmi2DeSerializeFMUstate", "not supported");
 }
 /* The exact partial derivatives of the state derivatives (switches held) and of the outputs by the
    states (the knowns of Model Exchange: this FMU has no inputs). */
 MP_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2ValueReference u[], size_t nu,
-                                                  const fmi2ValueReference k[], size_t nk, const fmi2Real dk[], fmi2Real du[]) {
-    mp_instance *m = mp_get(c, "fmi2GetDirectionalDerivative");
+                                                  const fmi2ValueReference k[], size_t nk, const fmi2Real dk[],
+                                                  fmi2Real du[]) {
+    mp_instance *m = (mp_instance *)c;
     const char *fn = "fmi2GetDirectionalDerivative";
     double *J;
     int need_d = 0, need_y = 0;
@@ -1081,14 +1070,14 @@ MP_EXPORT fmi2Status fmi2GetDirectionalDerivative(fmi2Component c, const fmi2Val
 
 /* ---- Model Exchange ---- */
 MP_EXPORT fmi2Status fmi2EnterEventMode(fmi2Component c) {
-    mp_instance *m = mp_get(c, "fmi2EnterEventMode");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     m->phase = MP_EVENT;
     return fmi2OK;
 }
 
 MP_EXPORT fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info) {
-    mp_instance *m = mp_get(c, "fmi2NewDiscreteStates");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL || info == NULL) return fmi2Error;
     if (m->phase != MP_EVENT) return mp_fail(m, "fmi2NewDiscreteStates", "not in event mode");
     mp_sides(m);             /* the switches are plain functions of (t, x): one pass settles them */
@@ -1102,7 +1091,7 @@ MP_EXPORT fmi2Status fmi2NewDiscreteStates(fmi2Component c, fmi2EventInfo *info)
 }
 
 MP_EXPORT fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
-    mp_instance *m = mp_get(c, "fmi2EnterContinuousTimeMode");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     if (m->phase != MP_EVENT) return mp_fail(m, "fmi2EnterContinuousTimeMode", "not in event mode");
     m->phase = MP_CONTINUOUS;
@@ -1118,14 +1107,14 @@ MP_EXPORT fmi2Status fmi2CompletedIntegratorStep(fmi2Component c, fmi2Boolean no
 }
 
 MP_EXPORT fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
-    mp_instance *m = mp_get(c, "fmi2SetTime");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     m->t = time;
     return fmi2OK;
 }
 
 MP_EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    mp_instance *m = mp_get(c, "fmi2SetContinuousStates");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     if (nx != MP_NX) return mp_fail(m, "fmi2SetContinuousStates", "wrong number of states");
     if (nx) memcpy(m->x, x, nx * sizeof(double));
@@ -1133,7 +1122,7 @@ MP_EXPORT fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[]
 }
 
 MP_EXPORT fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
-    mp_instance *m = mp_get(c, "fmi2GetContinuousStates");
+    mp_instance *m = (mp_instance *)c;
     if (m == NULL) return fmi2Error;
     if (nx != MP_NX) return mp_fail(m, "fmi2GetContinuousStates", "wrong number of states");
     if (nx) memcpy(x, m->x, nx * sizeof(double));
@@ -1141,7 +1130,7 @@ MP_EXPORT fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size
 }
 
 MP_EXPORT fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real dx[], size_t nx) {
-    mp_instance *m = mp_get(c, "fmi2GetDerivatives");
+    mp_instance *m = (mp_instance *)c;
     double out[MP_NX + 1];
     if (m == NULL) return fmi2Error;
     if (nx != MP_NX) return mp_fail(m, "fmi2GetDerivatives", "wrong number of states");
@@ -1151,7 +1140,7 @@ MP_EXPORT fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real dx[], size_t n
 }
 
 MP_EXPORT fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real z[], size_t nz) {
-    mp_instance *m = mp_get(c, "fmi2GetEventIndicators");
+    mp_instance *m = (mp_instance *)c;
     double g[MP_NZ + 1];
     if (m == NULL) return fmi2Error;
     if (nz != MP_NZ) return mp_fail(m, "fmi2GetEventIndicators", "wrong number of event indicators");

@@ -317,6 +317,9 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
     """
     tol = check_tol(tol)
     path = str(scene.path if isinstance(scene, Scene) else scene)
+    if not Path(path).is_file():
+        raise NetlistError("no_file", f"reduce edits a netlist file, and {path!r} is not one",
+                           "give the path of the netlist (a Scene loaded with multipole.load)", path)
     full_scene = scene if isinstance(scene, Scene) else load(path, overrides)
     with open(path, encoding="utf-8") as fh:
         data = yaml.safe_load(fh)
@@ -369,8 +372,9 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
             steps.append(step)
             try:
                 result = _run(loads(dump(edited), path), outputs)
-            except MultipoleError as exc:
-                step.note = f"{exc.code}: {exc.message}"[:160]
+            except (MultipoleError, ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+                code = getattr(exc, "code", type(exc).__name__)        # a candidate that fails is rejected
+                step.note = f"{code}: {getattr(exc, 'message', str(exc))}"[:160]
                 broken.add((element, red, target))
                 continue
             step.states_after = len(result.state_names)
@@ -392,9 +396,10 @@ def reduce(scene, tol: float = 1e-3, outputs=None, progress=None, overrides=None
         current = dict(current)
         current.pop("reference", None)        # it describes the full model
         text = dump(current, header)
+        reduced_scene = loads(text, path)
     else:
         text = Path(path).read_text(encoding="utf-8")     # unchanged: the user's file as it is
-    reduced_scene = loads(text, path)
+        reduced_scene = full_scene
     if best is not timed:
         best = _best_of(reduced_scene, outputs, best)
     report = Report(full_scene.name, tol, outputs, shares, steps, text, timed, best, len(timed.state_names),

@@ -147,8 +147,10 @@ def test_gear_with_negligible_friction_drops_a_level():
     assert report.error <= 1e-3
 
 
-def test_gear_whose_losses_are_observed_keeps_normal():
-    reduced, report = reduce(SPUR, tol=1e-3, outputs=["pinion.omega", "wheel.omega", "mesh.loss"], progress=False)
+def test_gear_whose_losses_are_observed_keeps_normal(capsys):
+    reduced, report = reduce(SPUR, tol=1e-3, outputs=["pinion.omega", "wheel.omega", "mesh.loss"], progress=True)
+    bar = capsys.readouterr().err
+    assert "reduce [" in bar and "mesh level" in bar                     # the progress bar names the candidate
     assert not report.accepted
     mesh = [s for s in report.steps if s.element == "mesh"]
     assert mesh and all(not s.accepted for s in mesh)
@@ -190,3 +192,10 @@ def test_piezo_stack_lumping_keeps_the_static_stack_laws():
     assert one["m"] == pytest.approx(5.0e-4 * sum((k / n) ** 2 for k in range(1, n + 1)), rel=1e-12)
     assert red.adapt({**entry, "n": 1}, None) is None
     assert red.adapt({**entry, "k_P": "kp"}, None)["k_P"] == "(kp)*10"
+
+
+def test_scene_without_a_file_is_refused():
+    sc = loads(STIFF.read_text(), "inline.yaml")
+    with pytest.raises(NetlistError) as exc:
+        reduce(sc)
+    assert exc.value.code == "no_file"

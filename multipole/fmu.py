@@ -334,8 +334,7 @@ def _refuse_unsupported(w: CWriter, eq: Equations, needed) -> None:
                            "make the loop linear (a linear law, or an inertia or compliance that breaks it), "
                            "or simulate with multipole")
         if any(sp.sympify(e).has(sp.Piecewise) for e in u.exprs):
-            raise FmuError("fmu_table", f"element {elements(b.owners)} uses a table (interp), which the FMU "
-                           "export does not support", "replace the table by a formula, or simulate with multipole")
+            raise _table_error(elements(b.owners))
         for e in u.exprs:          # what multipole's code generation refuses (codegen.Writer.P), refused here too
             if sp.sympify(e).xreplace(values).has(sp.zoo, sp.oo, sp.nan):
                 zero = sorted(str(q) for q in sp.sympify(e).free_symbols if q in values and values[q] == 0)
@@ -345,11 +344,15 @@ def _refuse_unsupported(w: CWriter, eq: Equations, needed) -> None:
                                "use a node or a rigid coupling instead")
     for u, e in eq.inputs.items():
         if sp.sympify(e).has(sp.Piecewise):
-            raise FmuError("fmu_table", f"element {u.name.split('.')[0]} uses a table (interp), which the FMU "
-                           "export does not support", "replace the table by a formula, or simulate with multipole")
+            raise _table_error(u.name.split(".")[0])
 
 
-def _printed(w: CWriter, what, owners: str):
+def _table_error(element: str) -> FmuError:
+    return FmuError("fmu_table", f"element {element} uses a table (interp), which the FMU export does not support",
+                    "replace the table by a formula, or simulate with multipole")
+
+
+def _printed(what, owners: str):
     """``what()`` with a code printer failure turned into ``fmu_unsupported`` naming the element."""
     try:
         return what()
@@ -399,7 +402,7 @@ def model_source(eq: Equations, outputs) -> tuple[str, int]:
             if _calculated(s):
                 init.append(f"    x[{i}] = {P(s.initial)};")
         return src + init + ["}", ""]
-    return "\n".join(_printed(w, build, "the model")), len(sw)
+    return "\n".join(_printed(build, "the model")), len(sw)
 
 
 def _output_writer(eq: Equations, out_exprs) -> CWriter:

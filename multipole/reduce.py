@@ -441,6 +441,8 @@ def cmd_reduce(args) -> int:
     _scene, report = reduce(args.file, args.tol, args.outputs, progress=False if args.quiet else None,
                             overrides=_overrides(args.set))
     print(report.summary())
+    if report.locked:
+        print(f"  left alone (named by an output): {', '.join(report.locked)}")
     for s in report.steps:
         verdict = "kept" if s.accepted else "rejected"
         error = f"error {s.error:.3g}" if s.error is not None else s.note

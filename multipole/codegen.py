@@ -359,6 +359,9 @@ class Model:
         self.mode = namespace.get("_mode")              # the sides the *_in_mode functions use
         self.rhs_in_mode = namespace.get("rhs_in_mode", self.rhs)
         self.jac_in_mode = namespace.get("jac_in_mode", self.jac)
+        #: the Jacobian as a csc_array (large models, :data:`SPARSE_JACOBIAN_STATES`), else None
+        self.jac_sparse = namespace.get("jac_sparse")
+        self.jac_sparse_in_mode = namespace.get("jac_in_mode_sparse", self.jac_sparse)
         self.switch_text = namespace["SWITCH_TEXT"]
         #: per switching function: depends on time alone, and its fastest sine rate [rad/s]
         self.switch_time_only = list(namespace.get("SWITCH_TIME_ONLY", [False] * self.n_switches))
@@ -679,14 +682,25 @@ class _Writer:
         body = [f"    {self.names[u]} = {self.P(self.eq.inputs[u])}" for u in inputs]
         return head + body + [f"    return _M @ np.concatenate((x, [{ext}]))", ""]
 
-    def affine_jacobian(self) -> list:
+    def affine_jacobian(self, sparse: bool = False) -> list:
         """``jac`` of an affine right-hand side (see :meth:`affine_rhs`): the state columns of ``M``,
         constant.  The forward-mode code it replaces has a line per nonzero, and compiling that
-        function (60,000 lines for 20,000 states) took gigabytes."""
+        function (60,000 lines for 20,000 states) took gigabytes.  ``sparse``: also ``jac_sparse``,
+        the same columns as a ``csc_array`` (and ``jac`` its dense copy)."""
         n = len(self.states)
+        if sparse:
+            return [f"_M_STATES = _M[:, :{n}].tocsc()", "", "def jac_sparse(t, x):",
+                    '    """Jacobian d(rhs)/dx as a csc_array: the state columns of M (an affine model)."""',
+                    "    _stats['jac_calls'] += 1", "    return _M_STATES.copy()", ""] + self._dense_view("jac")
         return [f"_M_STATES = _M[:, :{n}]", "", "def jac(t, x):",
                 '    """Jacobian d(rhs)/dx: the state columns of M (an affine model)."""',
                 "    _stats['jac_calls'] += 1", "    return _M_STATES.toarray()", ""]
+
+    @staticmethod
+    def _dense_view(name: str) -> list:
+        """``name(t, x)``: the dense array of ``name_sparse(t, x)`` (for eigenvalues, LSODA, GL4)."""
+        return [f"def {name}(t, x):", f'    """Jacobian d(rhs)/dx as a dense array (of {name}_sparse)."""',
+                f"    return {name}_sparse(t, x).toarray()", ""]
 
     def function(self, name, doc, needed, ret, extra=()) -> list:
         units = _closure(self.units, needed)
@@ -731,11 +745,23 @@ class _Writer:
         entries = [(i, j, name) for i, d in enumerate(self.eq.derivatives) for j, name in D.get(d, {}).items()]
         return JacobianPlan(units, steps, entries)
 
-    def jacobian(self, name: str = "jac") -> list:
-        """The Jacobian function of the numpy backend, printed from :meth:`jacobian_plan`."""
+    def jacobian(self, name: str = "jac", sparse: bool = False) -> list:
+        """The Jacobian function of the numpy backend, printed from :meth:`jacobian_plan`; with
+        ``sparse``, ``name_sparse`` returns it as a ``csc_array`` of the plan's nonzero pattern (no
+        n×n array: O(nonzeros) memory per call) and ``name`` is its dense copy."""
         plan = self.jacobian_plan()
+        if sparse:
+            return self._sparse_jacobian(name, plan)
         out = [f"def {name}(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
-        out += self.prologue(plan.units, self.eq.derivatives)
+        out += self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
+        n = len(self.states)
+        out.append(f"    _J = np.zeros(({n}, {n}))")
+        out += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
+        return out + ["    return _J", ""]
+
+    def _step_lines(self, plan: "JacobianPlan") -> list:
+        """The steps of ``plan`` as code: afterwards every name in ``plan.entries`` is set."""
+        out = []
         for step in plan.steps:
             if isinstance(step, Derivative):
                 out.append(f"    {step.name} = {step.code}")
@@ -745,10 +771,24 @@ class _Writer:
             out += [f"    _G[{r_i}, {c}] = {code}" for r_i, c, code in step.g]
             out.append("    _Dz = -np.linalg.solve(_Jz, _G)")
             out += [f"    {d} = _Dz[{zi}, {c}]" for zi, c, d in step.names]
+        return out
+
+    def _sparse_jacobian(self, name: str, plan: "JacobianPlan") -> list:
+        """``name_sparse``: the entries of ``plan`` in column-major order as the data of a ``csc_array``
+        whose pattern (row indices, column pointers) is fixed when the module is generated."""
         n = len(self.states)
-        out.append(f"    _J = np.zeros(({n}, {n}))")
-        out += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
-        return out + ["    return _J", ""]
+        entries = sorted(plan.entries, key=lambda e: (e[1], e[0]))
+        indptr = np.searchsorted([j for _, j, _ in entries], np.arange(n + 1)).tolist()
+        pattern = f"_{name.upper()}_PATTERN"
+        out = [f"{pattern} = (np.array({[i for i, _, _ in entries]!r}, dtype=np.int64), "
+               f"np.array({indptr!r}, dtype=np.int64))", "",
+               f"def {name}_sparse(t, x):", '    """Jacobian d(rhs)/dx as a csc_array."""',
+               "    _stats['jac_calls'] += 1"]
+        out += self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
+        data = ", ".join(d for _, _, d in entries)
+        out += [f"    _data = np.array([{data}], dtype=float)",
+                f"    return csc_array((_data, {pattern}[0].copy(), {pattern}[1].copy()), shape=({n}, {n}))", ""]
+        return out + self._dense_view(name)
 
     def grad(self, expr, exclude, D) -> dict:
         """{state index: code} of d expr/dx through the symbols of ``expr`` not in ``exclude``."""
@@ -918,6 +958,12 @@ CSE_MIN_OPS = 40
 #: flat scalar code costs about 0.15 µs per line, the product about 3 ns per nonzero plus 6 µs.
 AFFINE_MIN_STATES = 40
 
+#: From this many states on (a large model, as for :data:`AFFINE_MIN_STATES`) the module also has
+#: ``jac_sparse(t, x)``, the Jacobian as a ``scipy.sparse.csc_array`` of its nonzero pattern, which
+#: the driver hands to Radau and BDF (:func:`multipole.simulate.jacobian_for`); ``jac`` is then its
+#: dense copy.  A dense n×n Jacobian is 3.2 GB at 20,000 states, and its LU O(n³).
+SPARSE_JACOBIAN_STATES = AFFINE_MIN_STATES
+
 
 def generate(eq: Equations, outputs=(), runtime=()) -> str:
     """Python source of the model functions for ``eq``.
@@ -940,6 +986,9 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
                 '    """The initial state for the runtime parameters in _P."""',
                 f"    return [{', '.join(P(s.initial) for s in eq.states)}]", ""]
     affine = w.affine_rows() if len(w.states) >= AFFINE_MIN_STATES and not w.runtime else None
+    sparse = len(w.states) >= SPARSE_JACOBIAN_STATES
+    if sparse:
+        src.insert(2, "from scipy.sparse import csc_array")
     if affine is not None:
         src.insert(2, "from scipy.sparse import csr_array")
         src += w.affine_rhs(affine)
@@ -965,13 +1014,13 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
     src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"] + time_switch_lines(w, sw)
     src += w.function("switches", "Switching functions: a sign change is an event.", needed,
                       f"[{', '.join(P(s) for s in sw)}]")
-    src += w.affine_jacobian() if affine is not None else w.jacobian()
+    src += w.affine_jacobian(sparse) if affine is not None else w.jacobian("jac", sparse)
     if sw:        # the same right-hand side and Jacobian with every switch held on one side
         w.locked({g: k for k, g in enumerate(sw)})
         src += ["_mode = [1.0] * N_SWITCHES", ""]
         src += w.function("rhs_in_mode", "d/dt of the states with every switch on the side _mode says.",
                           eq.derivatives, f"np.array([{ders()}])", ["    _stats['rhs_calls'] += 1"])
-        src += w.jacobian("jac_in_mode")
+        src += w.jacobian("jac_in_mode", sparse)
         w.locked(None)
     return "\n".join(src) + "\n"
 

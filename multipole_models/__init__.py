@@ -148,33 +148,46 @@ def _linear_hand(name, names, A, x0, forcing=None, outputs=None) -> HandModel:
 # mass-spring chain (scaling benchmark)
 
 def mass_spring_chain(n: int, m: float = 1.0, c: float = 1.0e4, F0: float = 10.0, w: float = 20.0,
-                      t_end: float = 1.0) -> str:
+                      t_end: float = 1.0, c3: float = 0.0) -> str:
     """``n`` masses ``m`` [kg] joined by springs ``c`` [N/m]: wall–k1–m1–k2–m2–…–kn–mn ← F.
 
-    The last mass is driven by ``F0*sin(w*t)`` [N].  ``2n`` states.
+    The last mass is driven by ``F0*sin(w*t)`` [N].  ``2n`` states.  With ``c3`` [N/m³] not zero
+    the springs are hardening, ``force = c*q + c3*q**3`` (a ``C`` element with that law behind a
+    junction): the same states, a right-hand side that is not affine.
     """
-    lines = [f"name: mass_spring_chain_{n}",
+    params = {'m': m, 'c': c, 'F0': F0, 'w': w} | ({'c3': c3} if c3 else {})
+    name = f"mass_spring_chain_{n}" + ("_cubic" if c3 else "")
+    lines = [f"name: {name}",
              f"description: {n} masses and {n} springs in a chain, fixed at one end, forced at the other",
-             f"parameters: {_params({'m': m, 'c': c, 'F0': F0, 'w': w})}",
+             f"parameters: {_params(params)}",
              "elements:",
              "  wall: {type: ground, domain: translational}"]
     for i in range(1, n + 1):
-        lines.append(f"  k{i}: {{type: spring, c: c, domain: translational}}")
+        if c3:
+            lines.append(f"  k{i}: {{type: junction_a, ports: [a, b, s], signs: [1, -1, -1], domain: translational}}")
+            lines.append(f'  s{i}: {{type: C, law: "c*q + c3*q**3", domain: translational}}')
+        else:
+            lines.append(f"  k{i}: {{type: spring, c: c, domain: translational}}")
         lines.append(f"  m{i}: {{type: mass, m: m}}")
     lines += ['  force: {type: force_source, value: "F0*sin(w*t)"}', "connections:", "  - [wall.p, k1.a]"]
     for i in range(1, n + 1):
         lines.append(f"  - [k{i}.b, m{i}.a]")
         lines.append(f"  - [m{i}.b, {'k%d.a' % (i + 1) if i < n else 'force.p'}]")
-    lines += [f"outputs: [m{n}.v, k1.force]",
+        if c3:
+            lines.append(f"  - [k{i}.s, s{i}.p]")
+    lines += [f"outputs: [m{n}.v, {'s1.p.e' if c3 else 'k1.force'}]",
               f"simulate: {{t_end: {_num(t_end)}, dt_out: {_num(t_end / 200)}, rtol: 1.0e-6, atol: 1.0e-9}}",
               "reference: {kind: tight, hand_model: mass_spring_chain}"]
     return "\n".join(lines) + "\n"
 
 
 def _chain_hand(params: dict, n: int) -> HandModel:
-    """Hand-written chain: ``q_i' = v_{i-1} - v_i``, ``p_i' = c q_i - c q_{i+1}`` (+ F on the last)."""
+    """Hand-written chain: ``q_i' = v_{i-1} - v_i``, ``p_i' = F_i - F_{i+1}`` (+ F on the last) with the
+    spring forces ``F_i = c q_i + c3 q_i³`` (``c3`` = 0 unless the scene has it: linear springs)."""
     m, c, F0, w = (float(params[k]) for k in ("m", "c", "F0", "w"))
-    names = [f"k{i}.q" for i in range(1, n + 1)] + [f"m{i}.p" for i in range(1, n + 1)]
+    c3 = float(params.get("c3", 0.0))
+    spring = "s" if c3 else "k"
+    names = [f"{spring}{i}.q" for i in range(1, n + 1)] + [f"m{i}.p" for i in range(1, n + 1)]
 
     def rhs(t, x):
         q, p = x[:n], x[n:]
@@ -182,8 +195,8 @@ def _chain_hand(params: dict, n: int) -> HandModel:
         dq = np.empty(n)
         dq[0] = -v[0]
         dq[1:] = v[:-1] - v[1:]
-        dp = c * q
-        dp[:-1] -= c * q[1:]
+        dp = c * q + c3 * q**3
+        dp[:-1] -= dp[1:].copy()
         dp[-1] += F0 * np.sin(w * t)
         return np.concatenate((dq, dp))
 
@@ -195,9 +208,16 @@ def _chain_hand(params: dict, n: int) -> HandModel:
     J[n + idx[:-1], idx[1:]] = -c
 
     def jac(t, x):
-        return J
-    outs = {f"m{n}.v": lambda t, X: X[2 * n - 1] / m, "k1.force": lambda t, X: c * X[0]}
-    return HandModel(f"mass_spring_chain_{n}", names, np.zeros(2 * n), rhs, jac, outs, J)
+        if not c3:
+            return J
+        out = J.copy()
+        slope = c + 3.0 * c3 * x[:n]**2                 # dF_i/dq_i
+        out[n + idx, idx] = slope
+        out[n + idx[:-1], idx[1:]] = -slope[1:]
+        return out
+    force = f"{spring}1.p.e" if c3 else "k1.force"
+    outs = {f"m{n}.v": lambda t, X: X[2 * n - 1] / m, force: lambda t, X: c * X[0] + c3 * X[0]**3}
+    return HandModel(f"mass_spring_chain_{n}", names, np.zeros(2 * n), rhs, jac, outs, None if c3 else J)
 
 
 # -------------------------------------------------------------------------------------------------

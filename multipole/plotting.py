@@ -11,7 +11,7 @@ Rules kept here once:
 * Every axis is labelled with its quantity and SI unit; legends sit outside the axes (above the
   panels of a time plot, below those of a Bode plot), so they never cover a curve.
 * Bode: one column of panels (magnitude above phase) per pair of output unit and input unit, so
-  that curves on one axis have the same unit; the inputs are the sources the netlist drives
+  that curves on one axis have the same unit, at most :data:`BODE_COLUMNS` side by side; the inputs are the sources the netlist drives
   (:func:`multipole.linearize.driven_inputs`: grounds are not inputs).
 """
 from __future__ import annotations
@@ -23,6 +23,8 @@ import numpy as np
 
 from .files import atomic_output
 
+#: most columns of (magnitude, phase) panels side by side in a Bode plot; more unit pairs wrap
+BODE_COLUMNS = 3
 #: the time units of a time axis: (seconds per unit, unit)
 TIME_UNITS = ((1.0, "s"), (1e-3, "ms"), (1e-6, "µs"), (1e-9, "ns"))
 
@@ -135,12 +137,15 @@ def bode(lin, path=None, title: str = ""):
         for i, y in enumerate(lin.outputs):
             if np.any(np.abs(G[:, i, j]) > 0):
                 groups[(units.get(y, ""), units.get(u, ""))].append((i, j))
-    cols = max(len(groups), 1)
-    width = max(4.2 * cols, 7.0)
-    fig = new_figure(width, 6.2, show=path is None)
-    axes = fig.subplots(2, cols, sharex=True, squeeze=False)
+    cols = min(max(len(groups), 1), BODE_COLUMNS)
+    rows = max(-(-len(groups) // cols), 1)           # rows of (magnitude, phase) pairs
+    fig = new_figure(max(4.2 * cols, 7.0), 6.2 * rows, show=path is None)
+    axes = fig.subplots(2 * rows, cols, sharex=True, squeeze=False)
+    for k in range(len(groups), rows * cols):         # the unused places of the last row
+        axes[2 * (k // cols), k % cols].set_visible(False)
+        axes[2 * (k // cols) + 1, k % cols].set_visible(False)
     for c, ((out_unit, in_unit), pairs) in enumerate(groups.items()):
-        ax_m, ax_p = axes[0, c], axes[1, c]
+        ax_m, ax_p = axes[2 * (c // cols), c % cols], axes[2 * (c // cols) + 1, c % cols]
         for i, j in pairs:
             g = G[:, i, j]
             ax_m.loglog(freqs, np.abs(g), label=f"{lin.inputs[j]} → {lin.outputs[i]}")
@@ -149,6 +154,7 @@ def bode(lin, path=None, title: str = ""):
         ax_m.set_title(f"output in {out_unit or '-'}, input in {in_unit or '-'}", fontsize=9)
         ax_p.set_ylabel("phase [deg]")
         ax_p.set_xlabel("frequency [Hz]")
+        ax_p.tick_params(labelbottom=True)            # sharex hides them above the last row
         for ax in (ax_m, ax_p):
             ax.grid(which="both", alpha=0.3)
             for f in modes:

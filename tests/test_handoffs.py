@@ -229,7 +229,7 @@ def test_bode_has_one_column_per_unit_and_legends_off_the_curves(tmp_path):
     assert all(ax.get_xlabel() == "frequency [Hz]" for ax in axes if ax.get_ylabel() == "phase [deg]")
     curves = [line.get_label() for ax in axes for line in ax.get_lines() if not line.get_label().startswith("_")]
     assert sorted(curves) == ["motor.u → load.omega", "motor.u → rotor.omega", "motor.u → shaft.force"]
-    fig.canvas.draw()
+    # savefig drew the figure: the constrained layout has placed every axes and legend
     renderer = fig.canvas.get_renderer()
     legends = [ax.get_legend() for ax in axes if ax.get_legend() is not None]
     assert len(legends) == 2
@@ -258,8 +258,31 @@ def test_time_plot_compares_runs_with_a_legend_off_the_curves(drive_result, tmp_
     fig = time_plot({"full": drive_result, "coarse": coarse}, tmp_path / "c.png", "two runs", footer="compared")
     assert all(len(ax.get_lines()) == 2 for ax in fig.axes)
     assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == ["full", "coarse"]
-    fig.canvas.draw()
+    # savefig drew the figure: the constrained layout has placed every axes and legend
     renderer = fig.canvas.get_renderer()
     box = fig.axes[0].get_legend().get_window_extent(renderer)
     assert not any(box.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
     assert not box.overlaps(fig._suptitle.get_window_extent(renderer))
+
+
+def test_bode_of_many_unit_pairs_wraps_into_rows_without_overlaps(tmp_path):
+    """A voltage and a torque driving a speed and a current (one state, x' = -x + u1 + u2): four
+    (output unit, input unit) pairs, three columns a row, nothing drawn over anything else."""
+    from multipole.linearize import Linearization
+    from multipole.plotting import BODE_COLUMNS, bode
+    lin = Linearization(np.array([[-1.0]]), np.array([[1.0, 1.0]]), np.array([[1.0], [2.0]]), np.zeros((2, 2)),
+                        ["m.p"], ["supply.u", "brake.u"], ["m.omega", "m.current"],
+                        {"supply.u": "V", "brake.u": "N*m", "m.omega": "rad/s", "m.current": "A"})
+    fig = bode(lin, tmp_path / "b.png")
+    shown = [ax for ax in fig.axes if ax.get_visible()]
+    assert len(shown) == 2 * 4 and len(fig.axes) == 2 * 2 * BODE_COLUMNS
+    assert sorted(ax.get_ylabel() for ax in shown if ax.get_ylabel().startswith("|G|")) == \
+        ["|G| [(rad/s)/(N*m)]", "|G| [(rad/s)/V]", "|G| [A/(N*m)]", "|G| [A/V]"]
+    # savefig drew the figure: the constrained layout has placed every axes and legend
+    renderer = fig.canvas.get_renderer()
+    boxes = [ax.get_window_extent(renderer) for ax in shown]
+    boxes += [ax.get_legend().get_window_extent(renderer) for ax in shown if ax.get_legend() is not None]
+    assert len(boxes) == 8 + 4
+    assert not any(a.overlaps(b) for k, a in enumerate(boxes) for b in boxes[k + 1:])
+    phase = [ax for ax in shown if ax.get_ylabel() == "phase [deg]"]
+    assert all(any(t.get_text() for t in ax.get_xticklabels()) for ax in phase)    # frequencies readable

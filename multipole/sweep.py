@@ -109,11 +109,14 @@ def _bad(name: str, text: str, why: str, fix: str = "") -> SweepError:
 
 
 def _number(name: str, text: str, part: str) -> float:
-    """One number of a SPEC, read by the netlist's expression whitelist (``2e8``, ``2*pi``)."""
+    """One number of a SPEC, read by the netlist's expression whitelist (``2e8``, ``2*pi``); an
+    integer literal stays an int (an element may need a whole number, e.g. piezo_stack n)."""
     try:
         value = parse_expression(part.strip(), {}, f"--set {name}")
     except MultipoleError as exc:
         raise _bad(name, text, f"{part.strip()!r} is not a number ({exc.message})") from None
+    if value.is_Integer:
+        return int(value)
     try:
         number = float(value)
     except (TypeError, ValueError):
@@ -127,7 +130,8 @@ def parse_spec(name: str, text) -> Spec:
     """The :class:`Spec` of ``--set NAME=SPEC`` (see the module docstring); a number or a list of
     numbers may be given directly (the Python API).  Error code ``bad_spec`` for a malformed SPEC."""
     if isinstance(text, (list, tuple, np.ndarray)):
-        values = tuple(v if isinstance(v, str) else float(v) for v in text)
+        values = tuple(v if isinstance(v, str) else int(v) if isinstance(v, int) and not isinstance(v, bool)
+                       else float(v) for v in text)
         if not values:
             raise _bad(name, "[]", "no values")
         if any(isinstance(v, float) and not math.isfinite(v) for v in values):
@@ -509,7 +513,8 @@ def _synthetic(name: str, taken: set) -> str:
 
 
 def _text(value) -> str:
-    return value if isinstance(value, str) else repr(float(value))
+    """A design value as ``--set`` text (an int stays whole)."""
+    return value if isinstance(value, str) else repr(value) if isinstance(value, int) else repr(float(value))
 
 
 class Study:
@@ -615,13 +620,14 @@ class Study:
         try:
             try:
                 scene = load(self.path, overrides, extra)
-            except MultipoleError:
-                if any("." in n for n in runtime):
-                    for n in runtime:    # an element that needs a number: vary it as a structural value
-                        if "." in n:
-                            self.kinds[n] = "structural"
-                    raise _Replan() from None
-                raise
+            except MultipoleError as exc:
+                if not self._loads_with_numbers(group, runtime):
+                    raise                # the group's own error, with numbers too
+                # an element that needs a number (piezo_stack n): its swept parameters are structural
+                mine = [n for n in runtime if "." in n and f"element '{n.partition('.')[0]}'" in exc.where]
+                for n in mine or [n for n in runtime if "." in n]:
+                    self.kinds[n] = "structural"
+                raise _Replan() from None
             eq = pipeline.equations(scene)
             by_name = {str(p): p for p in eq.params}
             missing = [n for n in runtime if symbol_of[n] not in by_name]
@@ -658,6 +664,20 @@ class Study:
                 group.invalid[k] = "error[bad_value] a parameter computed from the swept ones is not finite"
                 continue
             group.vectors[k] = vector
+
+    def _loads_with_numbers(self, group: Group, runtime: list) -> bool:
+        """True if the group's first run loads with its runtime element parameters written as
+        numbers (then it was the symbols an element could not build with)."""
+        if not any("." in n for n in runtime):
+            return False
+        point = self.points[group.runs[0]]
+        overrides = dict(self.overrides)
+        overrides.update({n: _text(point[n]) for n in self.names})
+        try:
+            load(self.path, overrides)
+        except MultipoleError:
+            return False
+        return True
 
     def _refused(self, point: dict, runtime: list) -> str:
         """Why the loader would refuse a runtime value (an element parameter's own rules), or ''."""

@@ -396,3 +396,17 @@ def test_progress_line(capsys):
     bar.end()
     err = capsys.readouterr().err
     assert "runs 3/8, 1 failed, ETA 12 s" in err and err.endswith("\n")
+
+
+def test_element_that_needs_a_number_is_structural():
+    """piezo_stack builds n elements: n cannot stay a symbol, so each value is its own group; the
+    load mass stays a runtime value of each group's model."""
+    from pathlib import Path
+    scene = Path(__file__).resolve().parents[1] / "diagrams" / "weber" / "piezo_stack.yaml"
+    study = Study(scene, {"piezo.n": "2,3", "load.m": "0.5,1"}, metrics=["piezo.stroke.final"], t_end=1e-4)
+    rows = study.run(SerialExecutor())
+    assert study.kinds == {"piezo.n": "structural", "load.m": "runtime"}
+    assert len(study.groups) == 2
+    assert [r["status"] for r in rows] == ["ok"] * 4
+    # three elements in series stretch more than two under the same voltage ramp, whatever the load
+    assert rows[2]["piezo.stroke.final"] > rows[0]["piezo.stroke.final"] > 0

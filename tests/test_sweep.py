@@ -125,15 +125,16 @@ def test_settling_nan_when_it_never_settles():
 def test_runtime_parameters_match_the_closed_form(oscillator):
     """One compiled model, parameters set per run: every row's final deflection is the oscillator's
     at its own k (through the dependent c2 = 2k) and its own body mass (an element parameter)."""
-    study = Study(oscillator, {"k": "1..50:log:4", "mm": "0.5,2"}, metrics=["spring.deflection.final",
-                                                                           "spring.deflection.max"])
+    study = Study(oscillator, {"k": "1..50:log:4", "mm": "0.5,2", "x0": "0.1,-0.05"},
+                  metrics=["spring.deflection.final", "spring.deflection.max"])
     rows = study.run(SerialExecutor())
-    assert len(study.groups) == 1 and study.kinds == {"k": "runtime", "mm": "runtime"}
-    assert len(rows) == 8 and all(r["status"] == "ok" for r in rows)
+    assert len(study.groups) == 1 and study.kinds == {"k": "runtime", "mm": "runtime", "x0": "runtime"}
+    assert len(rows) == 16 and all(r["status"] == "ok" for r in rows)
     for r in rows:
-        expected = _q(1.0, 2 * r["k"], r["mm"])
-        assert r["spring.deflection.final"] == pytest.approx(expected, abs=1e-6 * 0.1)
-        assert r["spring.deflection.max"] == pytest.approx(0.1, abs=1e-9)   # at t = 0
+        expected = _q(1.0, 2 * r["k"], r["mm"], r["x0"])        # the initial state follows x0 too
+        assert r["spring.deflection.final"] == pytest.approx(expected, abs=1e-7)
+        if r["x0"] > 0:
+            assert r["spring.deflection.max"] == pytest.approx(r["x0"], abs=1e-9)   # at t = 0
         assert 0 < r["nfev"] and r["steps"] >= 1
 
 
@@ -410,3 +411,31 @@ def test_element_that_needs_a_number_is_structural():
     assert [r["status"] for r in rows] == ["ok"] * 4
     # three elements in series stretch more than two under the same voltage ramp, whatever the load
     assert rows[2]["piezo.stroke.final"] > rows[0]["piezo.stroke.final"] > 0
+
+
+def test_a_run_does_not_depend_on_the_runs_before_it(tmp_path):
+    """The solver choice of ``auto`` (from each run's own stiffness estimate) is made per run: a
+    lightly damped run after a stiff, heavily damped one in the same worker gives the same numbers,
+    bit for bit, as the light one alone."""
+    path = tmp_path / "damped.yaml"
+    path.write_text(textwrap.dedent("""\
+        name: damped
+        parameters: {dd: 0.1}
+        elements:
+          body:   {type: mass, m: 1.0}
+          spring: {type: spring, c: 100.0, x0: 0.01, domain: translational}
+          damper: {type: damper, d: dd, domain: translational}
+          wall:   {type: ground, domain: translational}
+        connections:
+          - [wall.p, spring.a, damper.a]
+          - [spring.b, damper.b, body.a]
+        outputs: [spring.deflection]
+        simulate: {t_end: 2.0, dt_out: 0.01, solver: auto, rtol: 1.0e-8, atol: 1.0e-12}
+        """))
+    metrics = ["spring.deflection.final", "spring.deflection.rms"]
+    after = Study(path, {"dd": "1e6,0.1"}, metrics)
+    after.run(SerialExecutor())
+    alone = Study(path, {"dd": "0.1"}, metrics)
+    alone.run(SerialExecutor())
+    assert after.rows[0]["solver"] != alone.rows[0]["solver"]      # stiff and not: two different choices
+    assert [after.rows[1][k] for k in metrics + ["solver"]] == [alone.rows[0][k] for k in metrics + ["solver"]]

@@ -439,3 +439,23 @@ def test_a_run_does_not_depend_on_the_runs_before_it(tmp_path):
     alone.run(SerialExecutor())
     assert after.rows[0]["solver"] != alone.rows[0]["solver"]      # stiff and not: two different choices
     assert [after.rows[1][k] for k in metrics + ["solver"]] == [alone.rows[0][k] for k in metrics + ["solver"]]
+
+
+def test_cli_ctrl_c_writes_the_finished_rows(oscillator, tmp_path, monkeypatch, capsys):
+    from multipole import sweep as sweep_module
+
+    def interrupt(self, done, failed, total, eta):
+        if done >= 2:
+            raise KeyboardInterrupt
+    monkeypatch.setattr(sweep_module._Bar, "__call__", interrupt)
+    out = tmp_path / "o"
+    code = main(["sweep", str(oscillator), "--set", "k=1..8:lin:8", "--executor", "serial",
+                 "--metrics", "spring.deflection.final", "-o", str(out), "--quiet"])
+    assert code == 130
+    with open(out / "runs.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert 2 <= len(rows) < 8
+    for r in rows:
+        assert float(r["spring.deflection.final"]) == pytest.approx(_q(1.0, 2 * float(r["k"]), 1.0), abs=1e-7)
+    assert "(interrupted)" in (out / "summary.txt").read_text()
+    assert "finished run(s) kept" in capsys.readouterr().err

@@ -62,6 +62,10 @@ MAX_OUTPUT_ROWS = 10_000_000
 MANY_STEPS = 1e8
 
 
+#: most outputs listed in the notebook view of a :class:`Result`
+HTML_ROWS = 50
+
+
 @dataclass
 class Result:
     """Sampled outputs and solver statistics of one run."""
@@ -124,11 +128,14 @@ class Result:
                 + (f", {len(s['warnings'])} warning(s)" if s.get("warnings") else "") + ">")
 
     def _repr_html_(self) -> str:
-        """The notebook view: outputs (unit, final, min, max), states, solver statistics, warnings."""
+        """The notebook view: outputs (unit, final, min, max; the first :data:`HTML_ROWS`), states,
+        solver statistics, warnings."""
         from html import escape
         rows = "".join(f"<tr><td>{escape(n)}</td><td>{escape(self.units.get(n, ''))}</td><td>{v[-1]:.6g}</td>"
                        f"<td>{np.min(v):.6g}</td><td>{np.max(v):.6g}</td></tr>"
-                       for n, v in self.outputs.items() if len(v))
+                       for n, v in list(self.outputs.items())[:HTML_ROWS] if len(v))
+        if len(self.outputs) > HTML_ROWS:
+            rows += f"<tr><td colspan=5>… {len(self.outputs) - HTML_ROWS} more outputs</td></tr>"
         span = f"t = 0 … {_seconds(self.t[-1])}, {len(self.t)} samples" if len(self.t) else "no samples"
         notes = "".join(f"<li>{escape(w)}</li>" for w in self.stats.get("warnings", []))
         return (f"<div><b>multipole Result</b>: {escape(span)}"

@@ -181,6 +181,8 @@ def test_result_html_lists_outputs_states_and_solver(drive_result):
     final = drive_result["shaft.force"][-1]
     assert f"<td>{final:.6g}</td>" in html
     assert "overflow in exp" in _many_outputs()._repr_html_()
+    html = _many_outputs(60)._repr_html_()
+    assert html.count("<tr>") == 1 + 50 + 1 and "… 10 more outputs" in html and len(html) < 10_000
 
 
 def test_analysis_repr_is_short():

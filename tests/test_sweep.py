@@ -459,3 +459,19 @@ def test_cli_ctrl_c_writes_the_finished_rows(oscillator, tmp_path, monkeypatch, 
         assert float(r["spring.deflection.final"]) == pytest.approx(_q(1.0, 2 * float(r["k"]), 1.0), abs=1e-7)
     assert "(interrupted)" in (out / "summary.txt").read_text()
     assert "finished run(s) kept" in capsys.readouterr().err
+
+
+def test_runtime_model_refuses_a_vector_of_the_wrong_length(oscillator):
+    from multipole import pipeline
+    from multipole.codegen import compile_model
+    scene = loads(oscillator.read_text(), "oscillator.yaml")
+    eq = pipeline.equations(scene)
+    k = next(p for p in eq.params if str(p) == "x0")
+    model = compile_model(eq, scene.outputs, [k])
+    assert model.runtime == ["x0"]
+    model.set_parameters([0.3])
+    x0 = dict(zip(model.state_names, model.x0.tolist()))
+    assert x0 == {"spring.q": 0.3, "body.p": 0.0}           # the spring starts stretched by x0, the mass at rest
+    with pytest.raises(MultipoleError) as exc:
+        model.set_parameters([0.3, 1.0])
+    assert exc.value.code == "bad_parameters"

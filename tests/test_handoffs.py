@@ -288,3 +288,13 @@ def test_bode_of_many_unit_pairs_wraps_into_rows_without_overlaps(tmp_path):
     assert not any(a.overlaps(b) for k, a in enumerate(boxes) for b in boxes[k + 1:])
     phase = [ax for ax in shown if ax.get_ylabel() == "phase [deg]"]
     assert all(any(t.get_text() for t in ax.get_xticklabels()) for ax in phase)    # frequencies readable
+
+
+def test_the_package_never_switches_the_matplotlib_backend():
+    """No module of the kernel or the element library selects a backend (the user's stays)."""
+    sources = [p for folder in ("multipole", "elements") for p in (ROOT / folder).rglob("*.py")]
+    assert len(sources) > 20
+    for path in sources:
+        text = path.read_text(encoding="utf-8")
+        for call in ("matplotlib.use(", "switch_backend(", "mpl.use("):
+            assert call not in text, f"{path.relative_to(ROOT)} calls {call}"

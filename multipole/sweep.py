@@ -48,8 +48,16 @@ from .netlist import METRIC_KINDS, Scene, load
 #: the environment variables that cap the threads of BLAS/OpenMP libraries in a worker
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
                     "NUMEXPR_NUM_THREADS")
+
+
+def _confirm_default() -> int:
+    """``$MULTIPOLE_SWEEP_CONFIRM`` if it is a whole number >= 1, else 1000."""
+    text = os.environ.get("MULTIPOLE_SWEEP_CONFIRM", "").strip()
+    return int(text) if text.isdigit() and int(text) >= 1 else 1000
+
+
 #: studies with more runs than this need ``--yes`` on the command line (``MULTIPOLE_SWEEP_CONFIRM``)
-CONFIRM_RUNS = int(os.environ.get("MULTIPOLE_SWEEP_CONFIRM", "1000") or 1000)
+CONFIRM_RUNS = _confirm_default()
 #: most runs one study may have
 MAX_RUNS = 1_000_000
 #: seconds to wait for a Dask scheduler to answer
@@ -466,6 +474,9 @@ def make_executor(kind="process", workers: int | None = None, scheduler: str | N
         return _Executor(kind, workers or os.cpu_count() or 1, label=type(kind).__name__, mine=False)
     if workers is not None and workers < 1:
         raise SweepError("bad_option", f"--workers must be at least 1, got {workers}", "", "command line")
+    if not (timeout > 0 and math.isfinite(timeout)):
+        raise SweepError("bad_option", f"--timeout must be a positive number of seconds, got {timeout:g}", "",
+                         "command line")
     if scheduler and kind != "dask":
         raise SweepError("bad_option", "--scheduler needs --executor dask", "add --executor dask", "command line")
     if kind == "serial":

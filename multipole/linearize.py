@@ -10,6 +10,7 @@ eigenvalues with their natural frequencies [Hz] and damping ratios.
 """
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -212,7 +213,7 @@ def operating_point(scene, eq: Equations, at=None) -> tuple[float, list, str]:
                                  f"states: {', '.join(eq.state_names)}", scene.path)
         t = float(at.get("t", 0.0))
         return t, [float(at.get(n, v)) for n, v in zip(eq.state_names, x0)], f"at t = {t:g} s about the given state"
-    if isinstance(at, (int, float)) and not isinstance(at, bool) and np.isfinite(at) and at >= 0:
+    if isinstance(at, numbers.Real) and not isinstance(at, bool) and np.isfinite(at) and at >= 0:
         if at == 0:
             return 0.0, x0, "at t = 0 about the initial state"
         from . import pipeline

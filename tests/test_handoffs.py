@@ -96,7 +96,7 @@ def test_operating_point_given_or_simulated(tmp_path):
     assert multipole.linearize(scene, at={"rotor.p": J * w}).A[0, 0] == pytest.approx(-(1 + 3 * w ** 2) / J,
                                                                                        rel=1e-12)
     # after 1 s (400 time constants) the rotor has settled at w = 1 rad/s: A = -(1 + 3)/J
-    settled = multipole.linearize(scene, at=1.0)
+    settled = multipole.linearize(scene, at=np.int64(1))          # any real number of seconds
     assert settled.A[0, 0] == pytest.approx(-4 / J, rel=1e-6)
     assert settled.input_labels == ["drive:u"]
 

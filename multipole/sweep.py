@@ -1070,6 +1070,7 @@ def cmd_sweep(args) -> int:
     """``multipole sweep``: exit 0 all runs ok, 3 some runs failed (the table has them), 2 invalid
     input, 130 Ctrl-C (the finished rows are written)."""
     from .cli import EXIT_INTERRUPTED
+    from .files import atomic_output
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise SweepError("bad_output", f"-o {out}: is a file, not a folder", "give a folder name", "command line")
@@ -1102,7 +1103,6 @@ def cmd_sweep(args) -> int:
     except ImportError:
         pass
     else:
-        from .files import atomic_output
         with atomic_output(out / "runs.parquet") as tmp:
             study.frame().to_parquet(tmp)
         written.append(out / "runs.parquet")
@@ -1113,10 +1113,12 @@ def cmd_sweep(args) -> int:
         study.figure(out / "figure.png", args.plot_metric)
         written.append(out / "figure.png")
     text = study.summary()
-    from .files import atomic_output
     with atomic_output(out / "summary.txt") as tmp:
         Path(tmp).write_text(text + "\n")
     written.append(out / "summary.txt")
+    for name in ("runs.parquet", "trajectories.csv", "figure.png"):    # none left from an earlier study
+        if out / name not in written and (out / name).is_file():
+            (out / name).unlink()
     print(text)
     print("wrote " + ", ".join(str(w) for w in written))
     if study.interrupted:

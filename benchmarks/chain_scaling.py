@@ -14,10 +14,15 @@ peak memory, what a user waits for).  Log-log slopes between consecutive sizes.
     python benchmarks/chain_scaling.py --estimate-only 1000 10000 [--before]
     python benchmarks/chain_scaling.py --stack 10 100
     python benchmarks/chain_scaling.py --plot-only        # redraw the figure from the CSV
+    python benchmarks/chain_scaling.py --process-only 2000 10000 --c3 1e6 --solver Radau
 
 ``--stack`` times check + compile of ``diagrams/weber/piezo_stack.yaml`` with n discs as written and
 with m: 0 and R: 0 (storages in derivative causality).  Every run stays inside the loader's input
 limits (docs/netlist.md, Limits): a 10,000-pair chain is 20,002 elements and 1.3 MB.
+
+``--process-only`` runs only the whole process, on chains with hardening springs ``c3*q**3`` (not
+affine: the generated Jacobian is a sparse matrix of the plan's nonzeros, docs/performance.md §3) when
+``--c3`` is given, with ``--solver``; a 10,000-pair such chain is 30,002 elements and 2.5 MB.
 
 ``--estimate-only`` times the stiffness estimate alone on the hand-written chain (no compile), and
 with ``--before`` also the dense ``eigvals`` of the full Jacobian the estimate replaced.
@@ -93,14 +98,15 @@ def measure(n: int) -> dict:
             "per_step_us": 1e6 * res.stats["wall_time"] / max(res.stats["steps"], 1), "sim_max_dev": dev}
 
 
-def whole_process(n: int) -> tuple[float, float]:
+def whole_process(n: int, c3: float = 0.0, solver: str = "auto") -> tuple[float, float]:
     """Wall time [s] and peak resident memory [MB] of ``multipole simulate`` on a chain of ``n`` pairs
-    with a fresh model cache, in its own process (``os.wait4`` gives that child's own peak)."""
+    (hardening springs with ``c3`` [N/m³] not zero) with ``--solver solver`` and a fresh model cache,
+    in its own process (``os.wait4`` gives that child's own peak)."""
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"chain{n}.yaml"
-        path.write_text(mass_spring_chain(n), encoding="utf-8")
-        cmd = [sys.executable, "-m", "multipole.cli", "simulate",
-               str(path), "--t-end", str(PROCESS_T_END), "--quiet", "--out", str(Path(tmp) / "r.csv")]
+        path.write_text(mass_spring_chain(n, c3=c3), encoding="utf-8")
+        cmd = [sys.executable, "-m", "multipole.cli", "simulate", str(path), "--t-end", str(PROCESS_T_END),
+               "--solver", solver, "--quiet", "--out", str(Path(tmp) / "r.csv")]
         env = {**os.environ, "MULTIPOLE_CACHE": str(Path(tmp) / "cache")}
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL)
@@ -269,7 +275,16 @@ if __name__ == "__main__":
     ap.add_argument("--before", action="store_true", help="with --estimate-only: also dense eigvals")
     ap.add_argument("--stack", type=int, nargs="+", metavar="n", help="check + compile of the piezo stack only")
     ap.add_argument("--plot-only", action="store_true", help="redraw the figure from OUT/chain_scaling.csv")
+    ap.add_argument("--process-only", type=int, nargs="+", metavar="N", help="whole process only (time, memory)")
+    ap.add_argument("--c3", type=float, default=0.0, help="with --process-only: hardening springs [N/m^3]")
+    ap.add_argument("--solver", default="auto", help="with --process-only: the solver")
     args = ap.parse_args()
+    if args.process_only:
+        for n in args.process_only:
+            wall, peak = whole_process(n, args.c3, args.solver)
+            print(f"N = {n}, c3 = {args.c3:g}, {args.solver}: whole process {wall:.3g} s, peak {peak:.0f} MB, "
+                  f"load {os.getloadavg()[0]:.1f}", flush=True)
+        sys.exit(0)
     if args.plot_only:
         plot(read_rows(Path(args.out) / "chain_scaling.csv"), ROOT / "docs" / "figures" / "bench_chain_scaling.png")
         sys.exit(0)

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import math
+
 import networkx as nx
 import numpy as np
 import sympy as sp
@@ -31,6 +33,9 @@ from .stages import bulk
 
 #: linear loops up to this size are solved symbolically
 SYMBOLIC_LIMIT = 8
+#: the core left after eliminating the constant pivots of a larger loop is solved symbolically up to
+#: this size (its entries are compound expressions: a 5 x 5 symbolic solve of a four-bar's took minutes)
+CORE_SYMBOLIC_LIMIT = 2
 
 
 @dataclass
@@ -319,6 +324,78 @@ def _solve_linear(residuals, zs):
     return A, b
 
 
+def _constant_pivots(A, b, zs, owners, notes, params: dict):
+    """Eliminate from the linear block ``A z = b`` every unknown that some row determines with a
+    constant coefficient (a number or a parameter expression: the aliases, balances and rigid
+    couplings of a network), cheapest row first (Markowitz).  Returns ``(core, eliminated)``: the
+    remaining block ``(A', b', zs', owners', notes')`` (possibly empty) and the eliminated unknowns
+    ``[(z, expression, owner, note)]`` in elimination order, each an expression of the core and of
+    the unknowns eliminated after it — so they are computed after the core, in reverse order.  A
+    mechanism's derivative-causality block of 46 unknowns keeps one or two (its reduced inertia);
+    nothing is approximated."""
+    n = len(zs)
+    rows: dict = {i: {} for i in range(n)}
+    for (i, j), a in A.todok().items():
+        if a != 0:
+            rows[i][j] = a
+    rhs = {i: b[i] for i in range(n)}
+    cols: dict = {j: set() for j in range(n)}
+    for i, r in rows.items():
+        for j in r:
+            cols[j].add(i)
+    known = set(params)
+
+    def pivot_ok(a):
+        if a.free_symbols - known:
+            return False
+        value = float(a.xreplace(params)) if a.free_symbols else float(a)
+        return value != 0.0 and math.isfinite(value)
+
+    eliminated = []
+    while True:
+        best, cost = None, None
+        for i, r in rows.items():
+            for j, a in r.items():
+                c = (len(r) - 1) * (len(cols[j]) - 1)
+                if (cost is None or c < cost) and pivot_ok(a):
+                    best, cost = (i, j), c
+                    if c == 0:
+                        break
+            if cost == 0:
+                break
+        if best is None:
+            break
+        i, j = best
+        row = rows.pop(i)
+        a_ij = row.pop(j)
+        b_i = rhs.pop(i)
+        cols[j].discard(i)
+        for k in row:
+            cols[k].discard(i)
+        eliminated.append((zs[j], (b_i - sp.Add(*[a * zs[k] for k, a in row.items()])) / a_ij, owners[i], notes[i]))
+        for r in list(cols.pop(j)):
+            f = rows[r].pop(j) / a_ij
+            for k, a in row.items():
+                new = rows[r].get(k, sp.Integer(0)) - f * a
+                if new == 0:
+                    rows[r].pop(k, None)
+                    cols[k].discard(r)
+                else:
+                    rows[r][k] = new
+                    cols[k].add(r)
+            rhs[r] = rhs[r] - f * b_i
+    keep_rows = sorted(rows)
+    keep_cols = sorted(cols)
+    index = {j: c for c, j in enumerate(keep_cols)}
+    A2 = sp.zeros(len(keep_rows), len(keep_cols))
+    for r_new, r in enumerate(keep_rows):
+        for j, a in rows[r].items():
+            A2[r_new, index[j]] = a
+    b2 = sp.Matrix([rhs[r] for r in keep_rows])
+    core = (A2, b2, [zs[j] for j in keep_cols], [owners[r] for r in keep_rows], [notes[r] for r in keep_rows])
+    return core, eliminated
+
+
 @bulk
 def assemble(analysis: Analysis, name: str = "model") -> Equations:
     """Order and solve the assigned equations; raise :class:`IllPosedError` if not well-posed."""
@@ -384,7 +461,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             sol = [sp.cancel(sp.together(s)) if sp.count_ops(s) < 300 else s for s in sol]
             blocks.append(Block("linear", zs, sol, res, owners, notes, A, b))
         else:
-            blocks.append(Block("linear", zs, None, res, owners, notes, A, b))
+            blocks += _split_block(A, b, zs, owners, notes, analysis.flat.param_values())
         if not derivative:
             diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res, symbolic=len(zs) <= SYMBOLIC_LIMIT))
     states = analysis.states
@@ -400,6 +477,22 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         if report is not None:
             diagnostics.append(report)
     return eq
+
+
+def _split_block(A, b, zs, owners, notes, params) -> list:
+    """A large linear block as its core (after :func:`_constant_pivots`; solved symbolically when it
+    is small, numerically otherwise) followed by the eliminated unknowns, explicit."""
+    (A2, b2, core, c_owners, c_notes), gone = _constant_pivots(A, b, zs, owners, notes, params)
+    out = []
+    if core:
+        res = [sp.Add(*[A2[r, k] * core[k] for k in range(len(core)) if A2[r, k] != 0]) - b2[r]
+               for r in range(len(core))]
+        sol = None
+        if len(core) <= CORE_SYMBOLIC_LIMIT:      # its entries are compound already: symbolic only when tiny
+            sol = [sp.cancel(sp.together(x)) if sp.count_ops(x) < 300 else x for x in A2.LUsolve(b2)]
+        out.append(Block("linear", core, sol, res, c_owners, c_notes, A2, b2))
+    out += [Block("explicit", [z], [expr], [z - expr], [o], [note]) for z, expr, o, note in reversed(gone)]
+    return out
 
 
 def closed_symbol(state) -> sp.Symbol:

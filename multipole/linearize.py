@@ -244,7 +244,7 @@ def scene_linearization(scene, at=None, outputs=None) -> Linearization:
             raise
         bad = [f"a derivative cannot be evaluated ({type(exc).__name__}: {str(exc).strip()[:100]})"]
     if bad:
-        raise _not_linearizable(scene, outputs, bad[0], text)
+        raise _not_linearizable(scene, outputs, bad[0], text, t, x)
     inputs = list(eq.inputs)
     keep = [inputs.index(u) for u in driven_inputs(scene, eq)]
     units = {**{o: eq.units.get(o, "") for o in outputs}, **input_units(eq),
@@ -283,10 +283,11 @@ def cmd_linearize(args) -> int:
     return 0
 
 
-def _not_linearizable(scene, outputs, what: str, point: str = "at t = 0 about the initial state") -> RunError:
+def _not_linearizable(scene, outputs, what: str, point: str = "at t = 0 about the initial state", t: float = 0.0,
+                      x=None) -> RunError:
     """The error for a Jacobian that is infinite or undefined at the operating point (``log(f)``,
     ``1/f``, ``sqrt(f)`` or an ideal ``sign(f)`` law at f = 0, ``1/t`` at t = 0), naming the element
-    where the compiled Jacobian fails."""
+    where the compiled Jacobian fails at time ``t`` [s] and state ``x`` (default: the initial one)."""
     from . import pipeline
     from .simulate import model_failure
     err = RunError("not_linearizable", f"the linear model is infinite or undefined {point}: {what}",
@@ -296,7 +297,7 @@ def _not_linearizable(scene, outputs, what: str, point: str = "at t = 0 about th
     try:
         model = pipeline.model(scene, outputs)
         with np.errstate(all="ignore"):
-            model.jac(0.0, model.x0)
+            model.jac(t, model.x0 if x is None else np.asarray(x, dtype=float))
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
         failure = model_failure(model, exc) if not isinstance(exc, MultipoleError) else None
         if failure is not None and failure.element in scene.element_lines:

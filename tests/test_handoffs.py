@@ -298,3 +298,15 @@ def test_the_package_never_switches_the_matplotlib_backend():
         text = path.read_text(encoding="utf-8")
         for call in ("matplotlib.use(", "switch_backend(", "mpl.use("):
             assert call not in text, f"{path.relative_to(ROOT)} calls {call}"
+
+
+def test_not_linearizable_at_the_given_point_names_the_element(tmp_path):
+    """torque sqrt(|f|): smooth while the rotor turns (omega0 = 1), infinite slope at standstill;
+    the error names the brake (found by evaluating the compiled Jacobian at that point)."""
+    text = CUBIC.replace('"f + f**3"', '"sqrt(abs(f))"').replace("J: 0.01}", "J: 0.01, omega0: 1.0}")
+    scene = multipole.load(write(tmp_path, text))
+    assert multipole.linearize(scene).A[0, 0] == pytest.approx(-0.5 / 0.01, rel=1e-12)   # d sqrt(w)/dw = 1/2
+    with pytest.raises(multipole.RunError) as exc:
+        multipole.linearize(scene, at={"rotor.p": 0.0})
+    assert exc.value.code == "not_linearizable" and "element 'brake'" in exc.value.where
+    assert "about the given state" in exc.value.message

@@ -465,3 +465,22 @@ def test_dds_that_cannot_reach_its_guide_is_reported_by_how_much():
     assert "0.3 m" in errors[0].message                  # |0.5 - 0| - 0.2
     a = check("name: near\nelements:\n  rod: {type: DDS, l: 0.6, v: 0.0, x1: 0, y1: 0.5, x2: 0, y2: 0}\n")
     assert not [d for d in a.diagnostics if d.severity == "error"]
+
+
+def test_san_force_driven_on_an_inclined_frame_guide_accelerates_by_newton():
+    """A force F on the drive of a slider (mass m) on a frame guide inclined by phi1:
+    x_G'' = F/m - g sin(phi1), from x0 and v0."""
+    m, F, phi1, x0, v0 = 2.0, 3.0, 0.5, 0.1, 0.4
+    r = run(f"""
+name: san_force
+elements:
+  push: {{type: force_source, value: {F}}}
+  san: {{type: SAN, v: 0.03, x0: {x0}, v0: {v0}, m: {m}, J: 0.01, xs: 0.02, ys: 0.01, phi1: {phi1}}}
+connections:
+  - [push.p, san.drive]
+outputs: [san.x, san.v]
+simulate: {{t_end: 1.0, dt_out: 0.1, rtol: 1e-10, atol: 1e-12}}
+""")
+    a = F / m - G * np.sin(phi1)
+    assert np.max(np.abs(r["san.v"] - (v0 + a * r.t))) < 1e-8
+    assert np.max(np.abs(r["san.x"] - (x0 + v0 * r.t + a * r.t ** 2 / 2))) < 1e-8

@@ -29,6 +29,9 @@ from .pruning import Pruning, prune as prune_equations
 from .simulate import Result, simulate
 
 _MODELS: dict = {}
+_PRUNED: dict = {}
+#: how many scenes' derived equations :func:`pruned` keeps in memory
+MAX_PRUNED = 16
 
 
 def check(scene: Scene) -> Analysis:
@@ -70,7 +73,21 @@ def equations(scene: Scene, analysis: Analysis | None = None) -> Equations:
 def pruned(scene: Scene, outputs=None, prune: bool = True):
     """``(equations, outputs, record)``: the scene's equations restricted to what ``outputs``
     (default: the scene's outputs, else the states) need, with the :class:`~multipole.pruning.Pruning`
-    record of what was dropped (:func:`multipole.pruning.prune`); ``prune`` False keeps everything."""
+    record of what was dropped (:func:`multipole.pruning.prune`); ``prune`` False keeps everything.
+
+    Remembered in this process per scene digest, outputs and ``prune`` (the last
+    :data:`MAX_PRUNED` of them), so a warm run on a backend that compiles from the equations
+    (numba, which keeps its compiled model on them) derives nothing again."""
+    key = (scene.digest, tuple(outputs) if outputs is not None else None, bool(prune))
+    if key not in _PRUNED:
+        if len(_PRUNED) >= MAX_PRUNED:
+            del _PRUNED[next(iter(_PRUNED))]        # the oldest: a sweep of overrides stays bounded
+        _PRUNED[key] = _prune(scene, outputs, prune)
+    small, outs, record = _PRUNED[key]
+    return small, list(outs), record
+
+
+def _prune(scene: Scene, outputs, prune: bool):
     eq = equations(scene)
     outs = list(outputs) if outputs is not None else (scene.outputs or eq.state_names)
     if not prune:

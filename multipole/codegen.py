@@ -72,6 +72,8 @@ def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False):
             F, J = trial
             norm = norm_of(F)
             continue
+        if (abs(dz) if scalar else np.max(np.abs(dz))) <= tol * (1.0 + (abs(z) if scalar else np.max(np.abs(z)))):
+            return z - dz, it         # converged to rounding: a line search would only halve the step 20 times
         lam = 1.0
         while True:
             z_new = z - lam * dz

@@ -136,6 +136,18 @@ def _newton{k}(w, a):
                 norm = _k.norm2(F)
                 continue
             _k.lu_solve(J, piv, dz)
+            step = 0.0
+            big = 0.0
+            for i in range({n}):
+                step = max(step, abs(dz[i]))
+                big = max(big, abs(z[i]))
+            if step <= 1e-12 * (1.0 + big):     # converged to rounding: no line search (it halves 20 times)
+                for i in range({n}):
+                    z[i] -= dz[i]
+                    w[{off} + i] = z[i]
+                w[0] += total
+                w[1] += 1
+                return z
             lam = 1.0
             while True:
                 for i in range({n}):

@@ -100,12 +100,17 @@ BUNDLES: dict[str, Bundle] = {
         Bundle("planar", (("x", "translational"), ("y", "translational"), ("phi", "rotational")),
                "planar rigid-body motion: x, y [m] and the angle phi [rad] about z; loads Fx, Fy [N] "
                "and the torque T [N*m]; power Fx*vx + Fy*vy + T*omega"),
+        Bundle("band", (("l", "translational"), ("gamma", "rotational")),
+               "band connection (point-to-point, never branched): l carries the band tension [N] as the "
+               "effort and the band material speed [m/s] as the flow (the wound length l_r [m], its "
+               "integral, is the position); gamma carries the inclination angle of the span [rad] as a "
+               "position and no torque"),
     )
 }
 
 
 def bundle(name: "str | Bundle") -> Bundle:
-    """Look up a bundle kind by name (``planar``)."""
+    """Look up a bundle kind by name (``planar``, ``band``)."""
     if isinstance(name, Bundle):
         return name
     try:

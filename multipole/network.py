@@ -102,6 +102,8 @@ def expand_connection(conn, children) -> list:
     kinds = [bundle_of(ref) for ref in conn]
     if not any(kinds):
         return [list(conn)]
+    if kinds[0] == "band" and len(conn) > 2:
+        _refuse_band_branching([conn], children)
     for ref, kind in zip(conn, kinds):
         if kind != kinds[0]:
             first, other = (conn[0], kinds[0]), (ref, kind)
@@ -110,6 +112,24 @@ def expand_connection(conn, children) -> list:
                              "join a bundle port only with bundle ports of the same kind; a one-dimensional "
                              "element attaches to an element's one-dimensional sub-ports")
     return [[f"{ref}.{c}" for ref in conn] for c, _ in bundle(kinds[0]).components]
+
+
+def _refuse_band_branching(connections, children) -> None:
+    """A band connection is point-to-point: a ``band`` bundle port joined to more than one other
+    port (in one entry or over several) is a ``band_branching`` error naming the ports."""
+    joined: dict = {}
+    for conn in connections:
+        refs = [r for r in conn if "." in r]
+        for ref in refs:
+            el, port = ref.split(".", 1)
+            if (getattr(children.get(el), "bundles", None) or {}).get(port) == "band":
+                joined.setdefault(ref, set()).update(r for r in refs if r != ref)
+    for ref, others in joined.items():
+        if len(others) > 1:
+            names = ", ".join(sorted({ref} | others))
+            raise ModelError("band_branching", f"the band connection {ref} branches: it joins {names}",
+                             "a band runs from one element to exactly one other: join each band port to one "
+                             "band port only")
 
 
 def _plain_kind(ref, children) -> str:
@@ -133,7 +153,9 @@ class Network:
     :class:`Quantity`.  ``body``: a child whose names take the network's own path (so the
     inertia's momentum is ``pinion.p``, not ``pinion.I.p``).  ``signals``: name -> ``"child.state"``;
     laws and ratios of the children may use the name for that state (e.g. the mesh position
-    ``phi`` of a gear stage, integrated by a :class:`~multipole.primitives.Tap`).
+    ``phi`` of a gear stage, integrated by a :class:`~multipole.primitives.Tap`); a name for
+    ``"child.port.e"`` / ``"child.port.f"`` stands for that port's effort / flow (a law modulated
+    by a force elsewhere in the element: a bearing friction torque proportional to the radial load).
 
     Port bundles and positions (used by planar mechanisms, but not specific to them):
     ``bundles``: name -> bundle kind (``"planar"``); the bundle ``out`` consists of the external
@@ -166,6 +188,7 @@ class Network:
         self.fixed = list(fixed)
         self.closures = list(closures)
         self.sketch = list(sketch)
+        _refuse_band_branching(connections, self.children)
         for name, kind in self.bundles.items():
             missing = [p for p in bundle(kind).ports(name) if p not in self.ports]
             if missing:
@@ -378,7 +401,8 @@ class _Flattener:
         return self.state_path(c, cpath, rest)
 
     def walk(self, net: Network, path: str, scope: _Scope | None):
-        signals = {name: var(self.state_path(net, path, ref)) for name, ref in net.signals.items()}
+        signals = {name: var(self.port_path(net, path, ref[:-2]) + ref[-2:]) if ref.endswith((".e", ".f"))
+                   else var(self.state_path(net, path, ref)) for name, ref in net.signals.items()}
         for local, (port, _default) in net.reads.items():
             signals[local] = var(f"position({self.port_path(net, path, net.ports[port])})")
         scope = _Scope(path, net.params, scope, signals)

@@ -967,6 +967,28 @@ AFFINE_MIN_STATES = 40
 SPARSE_JACOBIAN_STATES = AFFINE_MIN_STATES
 
 
+def computable_guards(eq: Equations) -> list:
+    """The closures' dead-centre guards ``(expr, threshold, text, element)`` of ``eq`` that its
+    states, parameters and inputs compute (pruning may have dropped the states of others)."""
+    known = {s.symbol for s in eq.states} | set(eq.params) | set(eq.inputs) | {T}
+    return [g for g in getattr(eq, "guards", []) if sp.sympify(g[0]).free_symbols <= known]
+
+
+def guard_function(eq: Equations):
+    """``(guards(t, x), [(element, text, threshold), ...])`` for a backend whose model is not this
+    module's generated source (numpy through sympy's lambdify); ``(None, [])`` without guards."""
+    guards = computable_guards(eq)
+    if not guards:
+        return None, []
+    x = sp.MatrixSymbol("x", len(eq.states), 1)
+    subs = {s.symbol: x[k, 0] for k, s in enumerate(eq.states)}
+    subs.update({u: sp.sympify(e) for u, e in eq.inputs.items()})
+    exprs = [sp.sympify(g[0]).xreplace(subs).xreplace(eq.params) for g in guards]
+    fun = sp.lambdify([T, x], exprs, "numpy")
+    return (lambda t, xs: fun(t, np.asarray(xs, dtype=float).reshape(-1, 1))), \
+        [(el, text, float(th)) for _e, th, text, el in guards]
+
+
 def generate(eq: Equations, outputs=(), runtime=()) -> str:
     """Python source of the model functions for ``eq``.
 
@@ -1003,8 +1025,7 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
                       f"np.array([{', '.join(P(e) for e in out_exprs)}], dtype=float)")
     every = list(eq.inputs) + [v for b in eq.blocks for v in b.variables]
     src += ["VALUE_NAMES = " + repr([v.name for v in every])]
-    known = {s.symbol for s in eq.states} | set(eq.params) | set(eq.inputs) | {T}
-    guards = [g for g in getattr(eq, "guards", []) if sp.sympify(g[0]).free_symbols <= known]
+    guards = computable_guards(eq)
     src += ["GUARD_TEXT = " + repr([(el, text, float(th)) for _e, th, text, el in guards])]
     src += w.function("guards", "The closures' dead-centre guards (multipole.network.Closure.guard).",
                       set().union(*(sp.sympify(g[0]).free_symbols for g in guards)),

@@ -58,7 +58,7 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
 from .. import cache, codegen
-from ..simulate import MAX_EVENTS, Run, SimulationError, chattering, step_failed
+from ..simulate import MAX_EVENTS, Run, SimulationError, chattering, dead_centre, step_failed
 from . import Backend, Refused
 from . import numba_kernels as K
 
@@ -577,8 +577,8 @@ class NumbaIntegrator:
                     K.integrate(*funcs, *work.args(chunk))
                     bar.update(work.fs[K.F_T])
             except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-                raise SimulationError("step_failed",
-                                      f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}") from None
+                raise step_failed(model, f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}", None,
+                                  (work.fs[K.F_T], work.x)) from None
             status, t = int(work.iw[K.I_STATUS]), float(work.fs[K.F_T])
             if status == K.TOO_MANY_EVENTS:
                 last = int(work.iw[K.I_NEV]) - 1
@@ -588,9 +588,9 @@ class NumbaIntegrator:
                 if work.w[2]:
                     msg += f" (Newton's method failed {int(work.w[2])} times in an algebraic loop)"
                 if status == K.NOT_FINITE:
-                    raise SimulationError("not_finite", msg, "check parameters (zero inertia? negative "
-                                          "stiffness?) and the check report")
-                raise step_failed(model, msg)
+                    raise dead_centre(model, t, work.x, msg) or SimulationError(
+                        "not_finite", msg, "check parameters (zero inertia? negative stiffness?) and the check report")
+                raise step_failed(model, msg, None, (t, work.x))
         model.w_run = work.w
         iw = work.iw
         counters = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
@@ -623,6 +623,7 @@ class NumbaBackend(Backend):
         cached = _compile(module, len(equations.states), len(switch_text))
         model = NumbaModel(equations, outputs, module, switch_text, _initial_state(equations), translate_time,
                            time.perf_counter() - start, cached)
+        model.guards, model.guard_text = codegen.guard_function(equations)      # read by the driver
         equations._numba_model = (tuple(outputs), model)
         return model
 

@@ -114,7 +114,7 @@ def test_belt_drive_slack_span_goes_slack_at_the_predicted_load():
     assert onsets, res.events
     # quasi-static up to the damper force cd/l_x * stretch rate (~1e-6 of the force) and the
     # decayed response to the start of the ramp
-    assert onsets[0] == pytest.approx(t_star, rel=1e-4)
+    assert onsets[0] == pytest.approx(t_star, rel=1e-5)     # measured 1.7e-7
     ratio = res.outputs["p1.omega"][-1] / res.outputs["p2.omega"][-1]
     assert ratio == pytest.approx(0.1 / 0.05, rel=1e-3)
 

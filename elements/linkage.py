@@ -59,7 +59,7 @@ def _anchor(x: str, y: str, phi: str | None = None) -> list:
 
 
 def _zero(value) -> bool:
-    return isinstance(value, (int, float, sp.Number)) and value == 0
+    return isinstance(value, (int, float, sp.Number)) and float(value) == 0.0   # sympy: Float(0.0) != 0
 
 
 def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(None, None, None), angle=None, slide=None) -> Network:

@@ -485,3 +485,11 @@ def test_eight_link_checks_and_balances_energy():
     assert np.max(np.abs(power[2:n - 2] - dke - dpe[2:n - 2])) < 1e-7 * np.max(np.abs(power))
     work = np.sum((power[1:] + power[:-1]) / 2 * np.diff(tt))   # trapezoid: error ~ dt^2 * T * P'' / 12
     assert abs(work) < 1e-6 * np.sum(np.abs(power[1:]) * np.diff(tt))
+
+
+def test_zero_mass_and_inertia_in_a_netlist_leave_the_body_part_out():
+    """``mS: 0`` and ``JS: 0`` in a netlist (sympy zeros after loading) build no inertia for the slider."""
+    sc = mp.loads(scene_text("DSD", {**DSD, "mS": 0, "JS": 0.0}, 1.0), "dsd.yaml")
+    names = {str(s.symbol) for s in pipeline.check(sc).flat.states}
+    assert "dyad.C.mx0.p" in names and "dyad.C.J0.p" in names          # the guide keeps its mass
+    assert not names & {"dyad.C.mx1.p", "dyad.C.my1.p", "dyad.C.J1.p"}

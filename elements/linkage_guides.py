@@ -275,8 +275,10 @@ def SDS(v1, v2, phi1, phi2, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, 
     # closed-form start: xG1 e1 - xG2 e2 = b (linear)
     b = sp.Matrix([xa2, ya2]) + V2 * _n(th2) - sp.Matrix([xa1, ya1]) - V1 * _n(th1)
     cross = e1[0] * e2[1] - e1[1] * e2[0]
-    xg1_0 = (b[0] * e2[1] - b[1] * e2[0]) / cross
-    xg2_0 = (b[0] * e1[1] - b[1] * e1[0]) / cross
+    # parallel slide lines at t = 0 are reported by the closure's condition; the start values stay finite
+    safe = sp.Piecewise((cross, sp.Abs(cross) > _PARALLEL), (1, True))
+    xg1_0 = (b[0] * e2[1] - b[1] * e2[0]) / safe
+    xg2_0 = (b[0] * e1[1] - b[1] * e1[0]) / safe
     s = _S("q4")
     a = sp.Matrix([_X, _Y])
     side1 = chain([tuple(a + s * _e(_TH) + _rot(_TH, _S("xs1"), _S("ys1"))), tuple(a + s * _e(_TH) + V1 * _n(_TH))],

@@ -433,6 +433,7 @@ def test_bad_geometry_is_one_line_error_via_cli(tmp_path, capsys, kind, params, 
     assert status in (1, 2), out
     assert "Traceback" not in out
     assert f"error[{code}]" in out and "dyad" in out, out
+    assert out.count("error[") == 1, out                    # that finding alone, no follow-up noise
 
 
 # -- the 8-link mechanism of Ebert §7.1's structure (diagrams/linkages/eight_link.yaml) --------------------------

@@ -402,14 +402,17 @@ class _Analyser:
     def sample_points(self, symbols):
         pts = []
         states = {s.symbol: s for s in self.flat.states}
+        starts: dict = {}           # initial values of displacement states, worked out once per group
         for k in range(self.n_samples):
             pt = {T: 0.1 * k}
             for s in symbols:
                 if s in self.values:
                     pt[s] = self.values[s]
                 elif s in states and not states[s].storage:
-                    q0 = complex(sp.sympify(states[s].initial).xreplace(
-                        {p: self.values[p] for p in self.values}))
+                    if s not in starts:
+                        starts[s] = complex(sp.sympify(states[s].initial).xreplace(
+                            {p: self.values[p] for p in self.values}))
+                    q0 = starts[s]
                     # a start value that is not real (a closure that cannot be assembled: the check
                     # reports it as cannot_assemble) is sampled from its real part
                     pt[s] = q0.real + 2 * np.pi * k / self.n_samples + 0.1
@@ -664,8 +667,9 @@ class _Analyser:
                 break
             r = A[i] - basis.T @ (basis @ A[i])
             size = np.linalg.norm(r)
-            # independent by matrix_rank's rule: above max(shape)·eps·(largest singular value)
-            if size > max(len(rows) + 1, d) * np.finfo(float).eps * max(largest, np.linalg.norm(A[i])):
+            # independent beyond rounding: a residual at eps level (a row dependent on the taken ones up
+            # to rounding) would make N[ref] singular (a locked inertia beside its held node did)
+            if size > 1e-9 * max(largest, np.linalg.norm(A[i])):
                 rows.append(int(i))
                 basis = np.vstack([basis, r / size])
                 largest = max(largest, np.linalg.norm(A[i]))

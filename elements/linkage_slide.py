@@ -41,8 +41,9 @@ def _check_mode(kind: str, K) -> None:
 
 
 def _travel_momenta(m, speed, phi):
-    """Initial momenta of a body moving at ``speed`` [m/s] along ``e(phi)`` [N*s, N*s, N*m*s]."""
-    return (m * speed * _cos(phi), m * speed * _sin(phi), 0)
+    """Initial momenta of a slider travelling at ``speed`` [m/s] along ``e(phi)`` on a guide at rest
+    [N*s, N*s]; its rotation is its guide's (None: from the couplings at t = 0)."""
+    return (m * speed * _cos(phi), m * speed * _sin(phi), None)
 
 
 def _local(expr):

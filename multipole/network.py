@@ -502,7 +502,11 @@ class _Flattener:
     def resolve_positions(self):
         """Replace every position read by the expression of the one element that determines the
         position of its node (or the read's default where the port is not connected), then the states'
-        initial values that refer to other states by those states' initial values."""
+        initial values that refer to other states by those states' initial values.  Two providers of one
+        node, a read that depends on itself and a node no element positions are recorded as
+        :class:`PositionProblem` records (the check words them; the first provider or the frame pose
+        stands in meanwhile), and the position graph is kept in ``position_providers``,
+        ``position_reads`` and ``position_states``."""
         if not self.reads and not self.positions:
             return
         node_of = {p: n for n in self.flat.nodes for p in n.ports}

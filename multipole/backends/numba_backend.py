@@ -614,6 +614,7 @@ class NumbaBackend(Backend):
         outputs = list(outputs)
         mine = getattr(equations, "_numba_model", None)
         if mine is not None and mine[0] == tuple(outputs):
+            mine[1].cached = True       # a warm call (pipeline.pruned remembers the equations): nothing compiled
             return mine[1]
         start = time.perf_counter()
         source, switch_text = translate(equations, outputs)

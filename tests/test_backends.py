@@ -324,6 +324,14 @@ def test_output_grid_is_the_numpy_backends(nb):
         assert np.array_equal(a.t, b.t)
 
 
+@pytest.fixture
+def fresh_equations(monkeypatch):
+    """Equations derived anew in this test: pipeline.pruned remembers them per scene in the process,
+    and the numba backend its compiled model on them, so a scene an earlier test ran on numba would
+    never reach the patched compiler."""
+    monkeypatch.setattr(pipeline, "_PRUNED", {})
+
+
 def _numba_cannot_compile(nb, monkeypatch):
     def broken(source):
         import numba
@@ -331,7 +339,7 @@ def _numba_cannot_compile(nb, monkeypatch):
     monkeypatch.setattr(nb, "load", broken)
 
 
-def test_a_model_numba_cannot_compile_runs_on_numpy_visibly(nb, monkeypatch):
+def test_a_model_numba_cannot_compile_runs_on_numpy_visibly(nb, monkeypatch, fresh_equations):
     """The fallback is announced (a warning naming the reason) and recorded in ``stats["backend"]``
     and ``solver_reason``; the numpy run gives the right answer."""
     from multipole.errors import MultipoleWarning
@@ -345,7 +353,7 @@ def test_a_model_numba_cannot_compile_runs_on_numpy_visibly(nb, monkeypatch):
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
 
 
-def test_a_model_the_numba_printer_cannot_translate_runs_on_numpy_visibly(nb, monkeypatch):
+def test_a_model_the_numba_printer_cannot_translate_runs_on_numpy_visibly(nb, monkeypatch, fresh_equations):
     from multipole.errors import MultipoleWarning
 
     def untranslatable(eq, outputs):
@@ -358,7 +366,7 @@ def test_a_model_the_numba_printer_cannot_translate_runs_on_numpy_visibly(nb, mo
     assert rel_error(res, RLCSeries().exact(res.t)) <= 1e-6
 
 
-def test_a_model_above_the_compile_size_limit_runs_on_numpy_visibly(nb, monkeypatch):
+def test_a_model_above_the_compile_size_limit_runs_on_numpy_visibly(nb, monkeypatch, fresh_equations):
     """numba is not started on a module whose source cost is above the limit (its compile time grows
     super-linearly): the run falls back saying the model was *refused as too large* (not that it
     failed to compile), with the cost, the limit and the variable that raises it; below it, numba runs."""
@@ -388,7 +396,7 @@ def test_a_100_state_chain_is_below_the_compile_size_limit(nb):
     assert cost[50] <= nb.MAX_SOURCE_COST < cost[150], cost
 
 
-def test_the_cli_shows_a_fallback_as_one_warning_line(nb, monkeypatch, capsys):
+def test_the_cli_shows_a_fallback_as_one_warning_line(nb, monkeypatch, fresh_equations, capsys):
     _numba_cannot_compile(nb, monkeypatch)
     assert main(["simulate", str(RLC), "--backend", "numba", "--quiet", "--t-end", "0.01"]) == 0
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]

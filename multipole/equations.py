@@ -76,8 +76,12 @@ class Equations:
         return [s.name for s in self.states]
 
     def initial_values(self) -> list[float]:
-        vals = {**{k: v for k, v in self.params.items()}}
-        return [float(sp.sympify(s.initial).xreplace(vals)) for s in self.states]
+        key = tuple(self.params.items())
+        cached = self.__dict__.get("_x0")
+        if cached is None or cached[0] != key:       # a mechanism's start values nest the start formulas of
+            vals = dict(self.params)                 # every module before it: worked out once per parameters
+            cached = self._x0 = (key, [float(sp.sympify(s.initial).xreplace(vals)) for s in self.states])
+        return list(cached[1])
 
     def output(self, name: str) -> sp.Expr:
         """Expression of a named output (element quantity, port variable, state, input)."""
@@ -413,6 +417,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             if j is not None and j != i:
                 g.add_edge(j, i)
     cond = nx.condensation(g)
+    params = analysis.flat.param_values()
     blocks, closed = _closure_blocks(analysis)
     diagnostics: list[Diagnostic] = []
     for c in nx.topological_sort(cond):
@@ -456,14 +461,20 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             err.variables, err.owners = zs, owners      # for the check's wording (multipole.checks)
             raise err
         derivative = any(eqs[i].role == "differentiated" for i in members)
+        first = len(blocks)
         if len(zs) <= SYMBOLIC_LIMIT:
             sol = A.LUsolve(b)
-            sol = [sp.cancel(sp.together(s)) if sp.count_ops(s) < 300 else s for s in sol]
+            # cancel only where the coefficients are constants: a mechanism's trigonometric ones made
+            # cancel the bulk of its check (12 s of the 8-link mechanism's); the code generator's
+            # common-subexpression elimination takes care of what cancel would have shortened
+            if not any(a.free_symbols - params.keys() for a in A.values()):
+                sol = [sp.cancel(sp.together(s)) if sp.count_ops(s) < 300 else s for s in sol]
             blocks.append(Block("linear", zs, sol, res, owners, notes, A, b))
         else:
             blocks += _split_block(A, b, zs, owners, notes, analysis.flat.param_values())
         if not derivative:
-            diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res, symbolic=len(zs) <= SYMBOLIC_LIMIT))
+            diagnostics.append(_loop_diag(analysis, owners, zs, "linear", res,
+                                          symbolic=all(b.solution is not None for b in blocks[first:])))
     states = analysis.states
     available, units = _available(analysis)
     if closed:

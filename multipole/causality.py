@@ -402,14 +402,17 @@ class _Analyser:
     def sample_points(self, symbols):
         pts = []
         states = {s.symbol: s for s in self.flat.states}
+        starts: dict = {}           # initial values of displacement states, worked out once per group
         for k in range(self.n_samples):
             pt = {T: 0.1 * k}
             for s in symbols:
                 if s in self.values:
                     pt[s] = self.values[s]
                 elif s in states and not states[s].storage:
-                    q0 = complex(sp.sympify(states[s].initial).xreplace(
-                        {p: self.values[p] for p in self.values}))
+                    if s not in starts:
+                        starts[s] = complex(sp.sympify(states[s].initial).xreplace(
+                            {p: self.values[p] for p in self.values}))
+                    q0 = starts[s]
                     # a start value that is not real (a closure that cannot be assembled: the check
                     # reports it as cannot_assemble) is sampled from its real part
                     pt[s] = q0.real + 2 * np.pi * k / self.n_samples + 0.1

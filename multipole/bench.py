@@ -640,31 +640,40 @@ def ratio_verdict(hand: Timing, comp: Timing, target: float = SPEEDUP_TARGET) ->
 
 
 def extend_ladder(rep: SceneReport, backend: str, levels, attempt, ratio: float, floor: float = LADDER_FLOOR) -> None:
-    """For every error level (looser first) that no successful run of ``backend`` reached: continue
-    the ladder of its most accurate solver, rtol / 10 at a time down to ``floor``, until a run
-    reaches the level, a run fails, or the error stops falling (less than halved: the method's own
-    floor).  The runs are appended to ``rep.runs`` with the message ``ladder extended``; a level
-    still unreached is marked so by :func:`equal_error`.  ``attempt`` is :func:`_sweep`'s."""
+    """For every error level (looser first) and every solver of ``backend`` whose successful runs
+    all miss it: continue that solver's ladder, rtol / 10 at a time down to ``floor``, until a run
+    reaches the level, a run fails, the error stops falling (less than halved: the method's own
+    floor), or a run is already slower than the fastest run of ``backend`` that reaches the level (a
+    tighter one would not be faster).  A solver whose ladder ended with a run that did not succeed
+    (failed, skipped) is left alone.  The runs are appended to ``rep.runs`` with the message
+    ``ladder extended``; a level still unreached is marked so by :func:`equal_error`.  ``attempt``
+    is :func:`_sweep`'s."""
     for level in sorted(levels, reverse=True):
-        if level <= 3 * rep.reference.error or fastest(rep, level, backend) is not None:
+        if level <= 3 * rep.reference.error:
             continue
-        ok = [r for r in rep.runs if r.backend == backend and r.status == "ok" and math.isfinite(r.err_max)]
-        if not ok:
-            continue
-        best = min(ok, key=lambda r: r.err_max)
-        start, k, last = min(r.rtol for r in ok if r.solver == best.solver), 1, best.err_max
-        while (rtol := start / 10**k) >= floor * (1 - 1e-9):
-            run = Run(rep.name, backend, best.solver, rtol, rtol * ratio, message="ladder extended")
-            rep.runs.append(run)
-            try:
-                res, walls = attempt(best.solver, rtol, run.atol)
-                _measure(run, rep.reference, res, walls)
-            except (MultipoleError, ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
-                run.status, run.message = "failed", "ladder extended: " + str(exc).splitlines()[0][:160]
-                break
-            if run.err_max <= level or run.err_max > 0.5 * last:
-                break
-            k, last = k + 1, run.err_max
+        for solver in dict.fromkeys(r.solver for r in rep.runs if r.backend == backend):
+            mine = [r for r in rep.runs if r.backend == backend and r.solver == solver]
+            ok = [r for r in mine if r.status == "ok" and math.isfinite(r.err_max)]
+            if not ok or min(r.err_max for r in ok) <= level:
+                continue
+            tightest = min(ok, key=lambda r: r.rtol)
+            best = fastest(rep, level, backend)
+            if any(r.status != "ok" and r.rtol < tightest.rtol for r in mine) or (
+                    best is not None and tightest.wall_s >= best.wall_s):
+                continue
+            k, last = 1, tightest.err_max
+            while (rtol := tightest.rtol / 10**k) >= floor * (1 - 1e-9):
+                run = Run(rep.name, backend, solver, rtol, rtol * ratio, message="ladder extended")
+                rep.runs.append(run)
+                try:
+                    res, walls = attempt(solver, rtol, run.atol)
+                    _measure(run, rep.reference, res, walls)
+                except (MultipoleError, ArithmeticError, ValueError, np.linalg.LinAlgError, RuntimeError) as exc:
+                    run.status, run.message = "failed", "ladder extended: " + str(exc).splitlines()[0][:160]
+                    break
+                if run.err_max <= level or run.err_max > 0.5 * last or (best is not None and run.wall_s >= best.wall_s):
+                    break
+                k, last = k + 1, run.err_max
 
 
 def _tightest(rep: SceneReport, backend: str) -> str:

@@ -123,11 +123,13 @@ def test_bench_quick_smoke_writes_csv_figure_and_summary(tmp_path, capsys):
     assert tight[-1] < tight[0]                               # tighter tolerance, smaller error
     hand_rows = [r for r in rows if r["backend"] == "scipy-hand"]
     assert {r["solver"] for r in hand_rows} == {"RK45", "DOP853", "Radau", "BDF", "LSODA"}
+    # beyond the quick ladder only runs that extend it, tighter than its last rtol
+    assert all(r["message"].startswith("ladder extended") for r in hand_rows if float(r["rtol"]) < 1e-9)
     assert all(r["status"] == "ok" for r in hand_rows)
     # same method, same tolerances, same equations: the hand-written run lands on the generated run's error
     for solver in ("RK45", "DOP853"):
         gen = [float(r["err_max"]) for r in numpy_rows if r["solver"] == solver]
-        own = [float(r["err_max"]) for r in hand_rows if r["solver"] == solver]
+        own = [float(r["err_max"]) for r in hand_rows if r["solver"] == solver and float(r["rtol"]) >= 1e-9]
         assert np.allclose(own, gen, rtol=1e-6)
     equal = list(csv.DictReader(open(out / "equal_error.csv", encoding="utf-8")))
     compiled = {r["backend"] for r in rows} - {"numpy", "scipy-hand"}
@@ -292,3 +294,27 @@ def test_equal_error_retimes_the_two_chosen_runs_interleaved():
     # the fastest runs reaching 1e-5 (equal sweep times: the first found, rtol 1e-5), warm-up + 3 rounds each
     assert calls == [(HAND, 1e-5), ("numba", 1e-5)] * 4
     assert row["rounds"] == 3 and row["ratio_lo"] <= row["ratio"] <= row["ratio_hi"]
+
+
+def test_every_solver_that_misses_a_level_gets_its_ladder_extended_unless_already_slower():
+    """The issue's case: hand-written LSODA just misses 1e-9 at the ladder's end while Radau reaches it
+    slowly; LSODA's ladder goes on (and wins), BDF's does not (already slower than Radau), nor RK45's
+    (its tightest rtol failed)."""
+    from multipole.bench import HAND, Reference, Run, SceneReport, extend_ladder, fastest
+    rep = SceneReport("s", "s.yaml", Reference("closed_form", "y", 1.0, 0.1, 0.0, "exact",
+                                               formula=lambda t, _: np.ones_like(t)))
+    err = {"Radau": lambda rtol: 0.2 * rtol, "LSODA": lambda rtol: 5 * rtol, "BDF": lambda rtol: 5 * rtol,
+           "RK45": lambda rtol: 5 * rtol}
+    wall = {"Radau": 0.050, "LSODA": 0.005, "BDF": 0.100, "RK45": 0.001}
+    for solver in err:
+        for rtol in (1e-7, 1e-8, 1e-9):
+            rep.runs.append(Run("s", HAND, solver, rtol, rtol, err_max=err[solver](rtol), wall_s=wall[solver]))
+    rep.runs[-1].status = "failed"                                     # RK45 at rtol 1e-9
+    asked = []
+
+    def attempt(solver, rtol, atol):
+        asked.append((solver, rtol))
+        return _FakeResult(err[solver](rtol), solver), [wall[solver]]
+    extend_ladder(rep, HAND, (1e-9,), attempt, ratio=1.0)
+    assert [(s, pytest.approx(r)) for s, r in asked] == [("LSODA", 1e-10)]
+    assert fastest(rep, 1e-9, HAND).solver == "LSODA"

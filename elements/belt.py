@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import C, I, R, TF, Network, Param, Quantity, Se, Sf, Tap, element, junction_a, junction_b
+from multipole import C, I, R, TF, ModelError, Network, Param, Quantity, Se, Sf, Tap, element, junction_a, junction_b
 
 _S = sp.Symbol
 _BAND = "band bundle (l: tension [N] / material speed [m/s], wound length [m]; gamma: inclination [rad])"
@@ -50,7 +50,6 @@ _BAND = "band bundle (l: tension [N] / material speed [m/s], wound length [m]; g
           "rate": "m/s: stretch rate d(l_B - l_x)/dt"})
 def band(EA, cd, l, l0, dir, gamma):
     """Elastic band span [EA in N, cd in N*s, lengths in m, gamma in rad]."""
-    from multipole import ModelError
     l0 = l if l0 is None else l0
     if isinstance(l0, (int, float, sp.Number)) and float(l0) <= 0:
         raise ModelError("bad_length", f"band: free length l0 = {l0!r} m must be > 0",
@@ -86,7 +85,6 @@ def band(EA, cd, l, l0, dir, gamma):
 
 def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap) -> Network:
     """A circular roll with ``sides`` band ports (2: roll, 1: drum): no-slip winding, inertia J."""
-    from multipole import ModelError
     if w not in (1, -1):
         raise ModelError("bad_winding", f"{kind}: w = {w!r} must be +1 or -1",
                          "+1: a positive rotation pays band out at e1 (and winds it in at e2)")
@@ -96,8 +94,7 @@ def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap) -> Netw
     # span directions pi - wrap (parallel spans for wrap = pi: F1 + F2); a drum carries F1 only
     radial_load = sp.Abs(F1) if sides == 1 else sp.sqrt(F1 ** 2 + F2 ** 2 - 2 * F1 * F2 * sp.cos(_S("wrap")))
     names = ["drive", "J", "tap"] + [f"t{k}" for k in range(1, sides + 1)] + ["fric"]
-    children = {"W": junction_b(names, "rotational"), "J": I(J=_S("J"), dom="rotational", p0=_S("J") * _S("omega0")),
-                "tap": Tap("rotational", q0=_S("phi0"))}
+    children = {"J": I(J=_S("J"), dom="rotational", p0=_S("J") * _S("omega0")), "tap": Tap("rotational", q0=_S("phi0"))}
     connections = [["W.J", "J.p"], ["W.tap", "tap.p"]]
     if isinstance(mu, (int, float)) and mu == 0:        # frictionless: no switching function
         names.remove("fric")
@@ -136,7 +133,7 @@ _ROLL_PARAMS = [Param("r", "m", "roll radius (to the band's neutral layer)", 0.0
                       nonnegative=True),
                 Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True)]
 _ROLL_QTY = {"phi": "rad: roll angle", "omega": "rad/s: angular velocity",
-             "F1": "N: band tension at e1", "friction": "N*m: bearing friction torque on the roll (into R)"}
+             "F1": "N: band tension at e1", "friction": "N*m: bearing friction torque (taken from the roll, positive when omega > 0)"}
 
 
 @element("band_roll", "circular band roll (Ebert 4.4.4, corrected): no-slip winding at radius r, inertia J, "

@@ -290,3 +290,17 @@ def test_six_link_dynamics_match_a_maximal_coordinate_multibody_model():
     assert ref.success
     assert np.abs(r["crank.phi"] - ref.y[2]).max() < 1e-6
     assert np.abs(r["rod.x"] - (ref.y[12] - 0.7)).max() < 1e-6
+
+
+def test_dwell_six_bar_dwells_where_the_coupler_point_runs_on_its_arc():
+    """diagrams/linkages/dwell_six_bar.yaml: the coupler point runs within 2e-4 R (R = 0.7523 m, a fit of
+    the closed-form coupler curve) of a circle about D0 for crank angles 260-360 degrees; a rod of
+    length R holds the output pin at D0 there, so the output rocker (0.12 m) stays at pi within
+    about 2e-4 R / 0.12 m = 1.3e-3 rad, and swings by more than 0.15 rad elsewhere."""
+    sc = mp.load("diagrams/linkages/dwell_six_bar.yaml")
+    r = run(sc)
+    crank = np.mod(r["crank.phi"], 2 * np.pi)
+    dwell = (crank > np.radians(262)) & (crank < np.radians(358))
+    assert dwell.sum() > 50
+    assert np.abs(r["output.phi2"][dwell] - np.pi).max() < 3e-3
+    assert np.abs(r["output.phi2"] - np.pi).max() > 0.15

@@ -217,7 +217,7 @@ def operating_point(scene, eq: Equations, at=None) -> tuple[float, list, str]:
         if at == 0:
             return 0.0, x0, "at t = 0 about the initial state"
         from . import pipeline
-        result = pipeline.run(scene, t_end=float(at), progress=False)
+        result = pipeline.run(scene, t_end=float(at), progress=False, prune=False)     # every state
         return float(at), list(result.states[-1]), f"at t = {at:g} s about the simulated state"
     raise MultipoleError("bad_operating_point", f"operating point at={at!r} is not a time or a mapping of states",
                          "at=None (t = 0), at=0.5 (the state simulated at 0.5 s) or at={'rotor.p': 0.1}",
@@ -295,7 +295,7 @@ def _not_linearizable(scene, outputs, what: str, point: str = "at t = 0 about th
                    "singularity (e.g. omega0), or regularise the law (tanh instead of sign)",
                    scene.path)
     try:
-        model = pipeline.model(scene, outputs)
+        model = pipeline.model(scene, outputs, prune=False)        # x is the full state
         with np.errstate(all="ignore"):
             model.jac(t, model.x0 if x is None else np.asarray(x, dtype=float))
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:

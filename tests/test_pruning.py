@@ -166,3 +166,9 @@ def test_diagram_outputs_bit_identical_with_and_without_pruning(path):
     assert np.array_equal(small.t, full.t)
     for name in full.outputs:
         assert np.array_equal(small.outputs[name], full.outputs[name]), name
+
+
+def test_linearize_about_a_simulated_state_sees_every_state():
+    import multipole
+    ss = multipole.linearize(scene(UNOBSERVED), at=0.5)       # the run it starts from is not pruned
+    assert ss.nstates == len(DRIVE + BRANCH)

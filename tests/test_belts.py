@@ -63,6 +63,17 @@ def test_pulley_block_efficiency_with_pin_friction_from_first_principles():
     eta = W / (4 * res.outputs["E.F"][-1])
     assert eta == pytest.approx((1 + ka + ka * kb + ka * kb * kc) / (4 * ka * kb * kc * kd), rel=1e-6)
     assert 0.91 < eta < 0.92            # 0.9147: the friction loss is about 8.5 %
+    # roll b: F1 at e1 is section C, F2 at e2 section B; the friction torque mu r_pin (F_B + F_C);
+    # its angle grows at the rope speed v/2 over r_b
+    outs = ["b.F1", "b.F2", "b.friction", "b.phi", "b.omega", "C.F", "B.F"]
+    res = pipeline.run(_block(mu=mu), progress=False, outputs=outs)
+    np.testing.assert_allclose(res.outputs["b.F1"], res.outputs["C.F"], rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["b.F2"], res.outputs["B.F"], rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["b.friction"], mu * 0.004 * (res.outputs["B.F"] + res.outputs["C.F"]),
+                               rtol=1e-12)
+    assert res.outputs["b.omega"][-1] == pytest.approx(0.5 / 0.06, rel=1e-3)
+    assert res.outputs["b.phi"][-1] - res.outputs["b.phi"][-2] == pytest.approx(
+        (res.t[-1] - res.t[-2]) * res.outputs["b.omega"][-1], rel=1e-4)
 
 
 # -- winding sign (erratum E1) ------------------------------------------------------------------
@@ -77,7 +88,8 @@ elements:
 connections:
   - [motor.p, drum.drive]
   - [drum.e1, rope.e1]
-outputs: [rope.F, rope.free, drum.phi]
+outputs: [rope.F, rope.free, rope.stretch, rope.length, rope.lr1, rope.lr2, drum.phi, drum.omega, drum.F1,
+          drum.friction]
 simulate: {t_end: 0.1, rtol: 1e-10, dt_out: 0.01}
 """
 
@@ -93,6 +105,15 @@ def test_winding_onto_a_drum_raises_the_tension_and_the_printed_sign_would_not()
     np.testing.assert_allclose(res.outputs["rope.free"], lx, rtol=1e-9)
     np.testing.assert_allclose(res.outputs["rope.F"], EA * (l - lx) / lx, rtol=1e-8)
     assert np.all(np.diff(res.outputs["rope.F"]) > 0)
+    # the other documented outputs of span and drum along the same motion
+    np.testing.assert_allclose(res.outputs["rope.stretch"], l - lx, rtol=1e-9)
+    np.testing.assert_allclose(res.outputs["rope.length"], l, rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["rope.lr1"], -r * w * t, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(res.outputs["rope.lr2"], 0.0, atol=0)
+    np.testing.assert_allclose(res.outputs["drum.phi"], -w * t, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(res.outputs["drum.omega"], -w, rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["drum.F1"], res.outputs["rope.F"], rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["drum.friction"], 0.0, atol=0)
     printed = lx - l                      # Ebert (4.54) as printed
     assert np.all(printed < 0)            # printed: slack (k_B = 0, F = 0) the whole time: the test would fail
 

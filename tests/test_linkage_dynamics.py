@@ -20,7 +20,7 @@ G = 9.81
 
 def scene(drive: str, omega0=0.0, phi0=0.3, gy=-G, t_end=2.0, rtol=1e-11, outputs=None):
     outputs = outputs or ["crank.phi", "crank.omega", "rocker.phi1", "rocker.phi2", "rocker.omega1",
-                          "rocker.omega2", "rocker.alpha1", "rocker.alpha2", "crank.torque"]
+                          "rocker.omega2", "rocker.alpha1", "rocker.alpha2", "crank.torque", "crank.alpha", "rocker.transmission"]
     text = f"""
 name: fourbar
 elements:
@@ -99,6 +99,7 @@ def test_speed_driven_kinematics_match_the_loop_closure():
     phi = 0.3 + 2 * t - np.cos(3 * t) / 3 + 1 / 3
     omega, alpha = 2 + np.sin(3 * t), 3 * np.cos(3 * t)
     assert np.abs(r["crank.phi"] - phi).max() < 1e-9
+    assert np.abs(r["crank.alpha"] - alpha).max() < 1e-9
     p1, p2, w1, w2, a1, a2 = coupler_rocker(phi, omega, alpha)
     assert np.abs(r["rocker.phi1"] - p1).max() < 1e-9
     assert np.abs(r["rocker.phi2"] - p2).max() < 1e-9
@@ -106,6 +107,7 @@ def test_speed_driven_kinematics_match_the_loop_closure():
     assert np.abs(r["rocker.omega2"] - w2).max() < 1e-8
     assert np.abs(r["rocker.alpha1"] - a1).max() < 1e-7
     assert np.abs(r["rocker.alpha2"] - a2).max() < 1e-7
+    assert np.abs(r["rocker.transmission"] - np.sin(p2 - p1)).max() < 1e-9
 
 
 def test_constant_speed_positions_to_1e_10():

@@ -75,7 +75,7 @@ def closed_ssd(p):
               (p["m2"], p["J2"], P + xg2 * e(th2) + rot(th2, p["xs2"], p["ys2"]), th1)]
     geo = {"PS1": A + xg1 * e(th1), "P": P, "PS2": P + xg2 * e(th2), "P2": sp.Matrix([p["x2"], p["y2"]]),
            "th1": th1, "th2": th2, "xG1": xg1, "xG2": xg2}
-    return bodies, {"dyad.xG1": xg1, "dyad.xG2": xg2, "dyad.x": P[0], "dyad.y": P[1]}, \
+    return bodies, {"dyad.xG1": xg1, "dyad.xG2": xg2, "dyad.x": P[0], "dyad.y": P[1], "dyad.phiU1": th1}, \
         {"dyad.vG1": "dyad.xG1", "dyad.vG2": "dyad.xG2"}, geo
 
 
@@ -90,8 +90,8 @@ def closed_sds(p):
               (p["m2"], p["J2"], P2 + xg2 * e(th2) + rot(th2, p["xs2"], p["ys2"]), th2)]
     geo = {"PS1": A + xg1 * e(th1), "P": P, "PS2": P2 + xg2 * e(th2), "th1": th1, "th2": th2, "xG1": xg1,
            "xG2": xg2}
-    return bodies, {"dyad.xG1": xg1, "dyad.xG2": xg2, "dyad.x": P[0], "dyad.y": P[1]}, \
-        {"dyad.vG1": "dyad.xG1", "dyad.vG2": "dyad.xG2"}, geo
+    return bodies, {"dyad.xG1": xg1, "dyad.xG2": xg2, "dyad.x": P[0], "dyad.y": P[1], "dyad.phiU1": th1,
+                    "dyad.phiU2": th2, "dyad.transmission": sp.sin(th2 - th1)}, {"dyad.vG1": "dyad.xG1", "dyad.vG2": "dyad.xG2"}, geo
 
 
 CASES = {"DSD": (DSD, closed_dsd, 1.0), "SSD": (SSD, closed_ssd, 2.0), "SDS": (SDS, closed_sds, 0.4)}

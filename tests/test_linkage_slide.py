@@ -86,7 +86,7 @@ connections:
   - [motor.p, crank.drive]
   - [crank.b, rod.a1]
 outputs: [crank.phi, crank.torque, rod.x, rod.v, rod.phi, rod.omega, rod.xP, rod.yP, rod.S.mx.p.e, rod.L.J.p.e,
-          rod.b2.x.f, rod.b2.y.f]
+          rod.b2.x.f, rod.b2.y.f, rod.transmission]
 simulate: {{t_end: 0.7, dt_out: 0.01, rtol: 1e-10, atol: 1e-12}}
 """
 
@@ -125,6 +125,8 @@ def test_slider_crank_position_velocity_acceleration(slider_crank):
     assert np.all(np.abs(np.diff(r["rod.phi"])) < 0.1)          # continuous, never re-wrapped
     assert np.max(np.abs(r["rod.omega"] - sample(phiL.diff(t), tt))) < 1e-10
     assert np.max(np.abs(r["rod.L.J.p.e"] / ROD["JL"] - sample(phiL.diff(t, 2), tt))) < 1e-9
+    # transmission: cos of the angle between the link and the guide (the guide along x here)
+    assert np.max(np.abs(r["rod.transmission"] - np.cos(sample(phiL, tt)))) < 1e-10
 
 
 def test_slider_crank_drive_torque_is_the_energy_rate(slider_crank):

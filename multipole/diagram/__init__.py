@@ -36,6 +36,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..causality import Analysis
+from ..errors import ModelError
 from .blocks import footnote_lines, make_blocks
 from .model import (COLLAPSE_ABOVE, CONFLICT, DERIVATIVE, DRAWN_HEAD, EFFORT, FLOW, MIDDLE_KINDS, ROW_KINDS, SCALE,
                     Arrow, Block, Diagram, Group)
@@ -66,7 +67,18 @@ def layout(analysis: Analysis, types: dict | None = None, title: str = "", subti
 
     ``types`` maps top-level element names to their type names (``scene.element_types``) for the
     frame labels.  Every port variable of the flat network gets exactly one :class:`Arrow`.
+
+    Scenes whose elements hand positions through their connections (planar linkages, bands) are
+    refused (``diagram_unsupported``): the layout does not yet draw their position closures and the
+    derivative causality of their bodies correctly, and a wrong diagram would teach the wrong thing;
+    ``multipole draw`` draws their geometry.
     """
+    flat = analysis.flat
+    if flat.closures or flat.position_providers:
+        raise ModelError("diagram_unsupported", "block diagrams of scenes whose elements hand positions "
+                         "through their connections (planar linkages, bands) are not drawn yet",
+                         "use 'multipole draw FILE -o figure.png' for the mechanism, 'multipole equations' "
+                         "for the derived equations")
     topo = Topology(analysis, types)
     ordering = order(topo)
     blockset = make_blocks(topo, ordering)

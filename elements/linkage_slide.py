@@ -30,6 +30,15 @@ from multipole import Closure, ModelError, Network, Param, Quantity, Se, Sf, Ske
 
 from .linkage import DEAD_CENTRE, _PLANAR_DOC, _anchor, _body, _gravity, _S, _zero, link
 
+
+def _guide_angle(name: str, port: str) -> Param:
+    """The guide's angle parameter: against the plane the anchor is joined to, as in Ebert's A.1
+    (``phi_rel`` relative to the connection frame) and in SSD, SDS and DSD; against the frame when the
+    anchor is not connected."""
+    return Param(name, "rad", f"angle of the guide against the plane {port} is joined to (the frame when {port} "
+                 "is not connected)", 0.0)
+
+
 _cos, _sin = sp.cos, sp.sin
 
 
@@ -77,12 +86,12 @@ def _nz(name: str, value):
          [Param("v", "m", "offset of P from the slide line, along the guide's y axis", 0.0),
           Param("x0", "m", "initial slider travel x_G (P1 to the foot point PS along the guide)", 0.0),
           Param("v0", "m/s", "initial travel rate x_G'", 0.0)]
-         + _slider_body() + _gravity() + _anchor("x1", "y1", "phi1"),
+         + _slider_body() + _gravity() + _anchor("x1", "y1") + [_guide_angle("phi1", "a")],
          {"x": "m: slider travel x_G (continuous)", "v": "m/s: travel rate x_G'", "force": "N: force at the drive port",
           "xP": "m: x of the point P", "yP": "m: y of the point P"})
 def SAN(v, x0, v0, xs, ys, m, J, gx, gy, x1, y1, phi1):
     """Linear drive (VDI 2729 SAN) [m, m/s, kg, kg*m^2, rad]."""
-    phiU, xG, xa, ya, V_ = _S("phiU"), _S("xG"), _S("xa"), _S("ya"), _S("v")
+    phiU, xG, xa, ya, V_ = _S("pa") + _S("phi1"), _S("xG"), _S("xa"), _S("ya"), _S("v")
     slider = link([(0, V_)], _nz("m", m), _nz("J", J), _S("xs"), _S("ys"), None, ("a", "out"),
                   _travel_momenta(_S("m"), _S("v0"), phiU), angle=phiU, slide=_S("x0"))
     xP = xa + xG * _cos(phiU) - V_ * _sin(phiU)
@@ -96,7 +105,7 @@ def SAN(v, x0, v0, xs, ys, m, J, gx, gy, x1, y1, phi1):
     return Network("SAN", {"S": slider, "G": Sf(0, "translational")}, [], ports, params, q,
                    signals={"xG": "S.K.q4"}, bundles={"a": "planar", "b": "planar"},
                    positions={"b.x": xP, "b.y": yP, "b.phi": phiU},
-                   reads={"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1")), "phiU": ("a.phi", _S("phi1"))},
+                   reads={"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1")), "pa": ("a.phi", 0)},
                    fixed=("a.x", "a.y", "a.phi"),
                    sketch=[Sketch([(xa, ya), (xa + xG * _cos(phiU), ya + xG * _sin(phiU))], ["P1", ""], "slide"),
                            Sketch([(xa + xG * _cos(phiU), ya + xG * _sin(phiU)), (xP, yP)], ["", "P"])])
@@ -155,7 +164,7 @@ def dds_start(K, l, v, xa1, ya1, xa2, ya2, phiU):
           Param("v", "m", "offset of the pin P from the slide line, along the guide's y axis", 0.1),
           Param("K", "-", "assembly mode at t = 0: +1 the larger slider travel, -1 the smaller", 1.0)]
          + _body("mL", "JL", "xsL", "ysL") + _slider_body("S") + _gravity()
-         + _anchor("x1", "y1") + _anchor("x2", "y2", "phi2"),
+         + _anchor("x1", "y1") + _anchor("x2", "y2") + [_guide_angle("phi2", "a2")],
          {"phi": "rad: link angle phi_L (from P towards P1, continuous)", "omega": "rad/s: link angular velocity",
           "x": "m: slider travel x_G", "v": "m/s: travel rate x_G'", "force": "N: force at the drive port",
           "xP": "m: x of the pin P", "yP": "m: y of the pin P",
@@ -166,7 +175,8 @@ def DDS(l, v, K, xsL, ysL, mL, JL, xsS, ysS, mS, JS, gx, gy, x1, y1, x2, y2, phi
     ``xsL``, ``ysL``: centre of mass of the link in its frame (origin P, x axis towards P1; default l/2)."""
     _check_mode("DDS", K)
     xsL = l / 2 if xsL is None else xsL
-    xa1, ya1, xa2, ya2, phiU = (_S(n) for n in ("xa1", "ya1", "xa2", "ya2", "phiU"))
+    xa1, ya1, xa2, ya2 = (_S(n) for n in ("xa1", "ya1", "xa2", "ya2"))
+    phiU = _S("pa2") + _S("phi2")           # the guide against the plane of its anchor (as SSD, SDS, DSD)
     L_, V_, phiL, xG = _S("l"), _S("v"), _S("phiL"), _S("xG")
     xG0, phiL0 = dds_start(_S("K"), L_, V_, xa1, ya1, xa2, ya2, phiU)
     # the link seen from P1 (its reference A): P at (-l, 0), the centre of mass at (xsL - l, ysL)
@@ -198,7 +208,7 @@ def DDS(l, v, K, xsL, ysL, mL, JL, xsS, ysS, mS, JS, gx, gy, x1, y1, x2, y2, phi
                    positions={"b1.x": xa1, "b1.y": ya1, "b1.phi": phiL,
                               "b2.x": xa2 + xG * _cos(phiU), "b2.y": ya2 + xG * _sin(phiU), "b2.phi": phiU},
                    reads={"xa1": ("a1.x", _S("x1")), "ya1": ("a1.y", _S("y1")),
-                          "xa2": ("a2.x", _S("x2")), "ya2": ("a2.y", _S("y2")), "phiU": ("a2.phi", _S("phi2"))},
+                          "xa2": ("a2.x", _S("x2")), "ya2": ("a2.y", _S("y2")), "pa2": ("a2.phi", 0)},
                    fixed=("a1.x", "a1.y", "a1.phi", "a2.x", "a2.y", "a2.phi"), closures=[closure],
                    sketch=[Sketch([(xa1, ya1), (xP, yP)], ["", "P"]),
                            Sketch([(xa2, ya2), (xa2 + xG * _cos(phiU), ya2 + xG * _sin(phiU))], ["P2", ""], "slide"),

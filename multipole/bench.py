@@ -837,8 +837,8 @@ def plot_work_precision(rep: SceneReport, path) -> None:
     backend; (2) error against wall time of every compiled backend (dashed) and of the hand-written
     model with ``solve_ivp`` (dotted) — the equal-error comparison; (3) error against nfev, numpy
     backend.  Colour: the method; line style: who ran it (said in each legend)."""
-    from matplotlib.figure import Figure      # no pyplot: the caller's backend is left alone
-    fig = Figure(figsize=(16.5, 7.0))
+    from .plotting import new_figure          # no pyplot: the caller's backend is left alone
+    fig = new_figure(16.5, 7.0, layout=None)
     axes = fig.subplots(1, 3, sharey=True)
     axes[1].sharex(axes[0])            # the same wall-time scale for numpy, compiled and hand-written runs
     floor = max(rep.reference.error, 1e-16)

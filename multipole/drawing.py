@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import NetlistError
+from .plotting import new_figure, save
 
 #: instants drawn when none are given
 DEFAULT_INSTANTS = 5
@@ -124,8 +125,7 @@ def _decorate(ax, drawn, lo, hi, pivots):
 
 def mechanism_figure(result, drawn, path, at=None, instants=DEFAULT_INSTANTS, title=""):
     """The mechanism at the chosen instants with its traced paths, written to ``path``."""
-    from matplotlib.figure import Figure
-    fig = Figure(figsize=(7.5, 6.0), layout="constrained")
+    fig = new_figure(7.5, 6.0)
     ax = fig.subplots()
     ks = _instants(result.t, at, instants)
     for d in drawn:
@@ -140,15 +140,14 @@ def mechanism_figure(result, drawn, path, at=None, instants=DEFAULT_INSTANTS, ti
     ax.set_title((title + "\n" if title else "") + f"at t = {times} s (light to dark)", fontsize=10)
     if any(d.trace for d in drawn):
         fig.legend(loc="outside lower center", fontsize=8, frameon=False)
-    fig.savefig(path, dpi=120)
+    save(fig, path)
 
 
 def transfer_figure(result, pairs, path, units=None):
     """Transfer functions of 0th, 1st and 2nd order ``q(p)``, ``dq/dp``, ``d2q/dp2`` for each
     ``(p, q)`` output pair, from the sampled run (central differences over the drive coordinate)."""
-    from matplotlib.figure import Figure
     units = units or {}
-    fig = Figure(figsize=(7.5, 7.5), layout="constrained")
+    fig = new_figure(7.5, 7.5)
     axes = fig.subplots(3, 1, sharex=True)
     for p_name, q_name in pairs:
         p, q = np.asarray(result[p_name]), np.asarray(result[q_name])
@@ -165,20 +164,18 @@ def transfer_figure(result, pairs, path, units=None):
         ax.grid(alpha=0.3)
         ax.set_title(f"transfer function of {order} order", fontsize=9, loc="left")
     axes[0].legend(fontsize=8, loc="best")
-    fig.savefig(path, dpi=120)
+    save(fig, path)
 
 
 def animation(result, drawn, path, frames=60):
     """An animated GIF of the run (``frames`` evenly spaced samples), written with Pillow."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
     from PIL import Image
     lo, hi = _limits(drawn)
     pivots = _frame_pivots(drawn)
     images = []
     for k in _instants(result.t, None, frames):
-        fig = Figure(figsize=(5, 4), dpi=80, layout="constrained")
-        FigureCanvasAgg(fig)
+        fig = new_figure(5, 4)
+        fig.set_dpi(80)
         ax = fig.subplots()
         for d in drawn:
             if d.trace:

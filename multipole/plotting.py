@@ -39,15 +39,16 @@ def time_unit(t_end: float) -> tuple[float, str]:
     return TIME_UNITS[-1]
 
 
-def new_figure(width: float, height: float, show: bool = False):
-    """A figure of ``width`` x ``height`` inches with constrained layout.  ``show``: made by pyplot
-    (the user's backend displays it); else a bare Figure on an Agg canvas, outside pyplot."""
+def new_figure(width: float, height: float, show: bool = False, layout: str | None = "constrained"):
+    """A figure of ``width`` x ``height`` inches (``layout``: matplotlib's layout engine, None for a
+    figure placed by hand).  ``show``: made by pyplot (the user's backend displays it); else a bare
+    Figure on an Agg canvas, outside pyplot.  Every figure of the package is made here."""
     if show:
         import matplotlib.pyplot as plt
-        return plt.figure(figsize=(width, height), layout="constrained")
+        return plt.figure(figsize=(width, height), layout=layout)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
-    fig = Figure(figsize=(width, height), layout="constrained")
+    fig = Figure(figsize=(width, height), layout=layout)
     FigureCanvasAgg(fig)
     return fig
 

@@ -888,8 +888,9 @@ class Study:
         """Metric against parameter (one parameter), a heat map (two parameters on a grid; a
         scatter coloured by the metric for a sampled design), or the metric against each parameter
         (more); failed runs are marked with red crosses.  ``overlay(ax)`` may draw on the axes."""
-        import matplotlib.pyplot as plt
         from matplotlib.colors import LogNorm
+
+        from .plotting import new_figure
         from .files import atomic_output
         metric = metric or self.metrics[0].name
         if metric not in {m.name for m in self.metrics}:
@@ -903,7 +904,8 @@ class Study:
         title = f"{self.base.name}: {metric}"
         if len(numeric) == 2 and len(self.specs) == 2:
             a, b = numeric
-            fig, ax = plt.subplots(figsize=(7, 5.2))
+            fig = new_figure(7, 5.2, layout=None)
+            ax = fig.subplots()
             finite = y[np.isfinite(y)]
             log_colour = len(finite) > 0 and finite.min() > 0 and finite.max() > 1e3 * finite.min()
             norm = LogNorm() if log_colour else None
@@ -925,7 +927,8 @@ class Study:
             ax.set_yscale("log" if log[b.name] else "linear")
         else:
             params = self.specs[:4]
-            fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), squeeze=False)
+            fig = new_figure(5.5 * len(params), 4.2, layout=None)
+            axes = fig.subplots(1, len(params), squeeze=False)
             for ax, s in zip(axes[0], params):
                 x = [r[s.name] for r in ok]
                 if s.numeric and len(self.specs) == 1:
@@ -948,7 +951,6 @@ class Study:
         fig.tight_layout()
         with atomic_output(path) as tmp:
             fig.savefig(tmp, dpi=120)
-        plt.close(fig)
 
 
 class _Replan(Exception):

@@ -10,14 +10,13 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
+from ..plotting import new_figure
 from .model import CONFLICT, DERIVATIVE, DY, EFFORT, FLOW, SCALE, Diagram
 
 
 def figure(diagram: Diagram):
     """The matplotlib :class:`~matplotlib.figure.Figure` of ``diagram`` (Agg canvas, pyplot's
     global state untouched).  Wires are ``Line2D`` with gid ``wire``; every text is a ``Text``."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import FancyBboxPatch, Patch
 
@@ -39,8 +38,7 @@ def figure(diagram: Diagram):
     msg_in = 0.2 + 0.19 * len(msg_lines) if msg_lines else 0.0
     diag_in = (ymax - ymin) * SCALE
     height_in = head_in + diag_in + legend_in + msg_in + 0.15
-    fig = Figure(figsize=(width_in, height_in))
-    FigureCanvasAgg(fig)
+    fig = new_figure(width_in, height_in, layout=None)
     ax = fig.add_axes([margin_l / width_in, (legend_in + msg_in + 0.1) / height_in,
                        (xmax - xmin) * SCALE / width_in, diag_in / height_in])
     ax.set_xlim(xmin, xmax)

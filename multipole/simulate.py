@@ -739,6 +739,7 @@ class ScipyIntegrator:
         cls = SOLVERS[solver]
         n = len(x)
         model.reset_stats()
+        guarded = bool(getattr(model, "guard_text", None))
         states = np.empty((len(t_grid), n))
         k_out = 0
         stats = {"steps": 0, "nfev": 0, "njev": 0, "nlu": 0, "segments": 0, "dense_calls": 0}
@@ -788,6 +789,8 @@ class ScipyIntegrator:
                         msg += f"; infinite or NaN: {cause}"
                     raise step_failed(model, f"{solver} failed at t = {ode.t:.6g} s: {msg}", element, (ode.t, ode.y))
                 stats["steps"] += 1
+                if guarded and dead_centres(model, ode.t, ode.y, DEAD_STOP):
+                    raise dead_centre(model, ode.t, ode.y, "the integration reached it")
                 dense = _Dense(ode, stats)
                 t_stop = ode.t
                 if watch.any():
@@ -848,9 +851,14 @@ def step_failed(model, message: str, element: str | None = None, state=None) -> 
     return found or _failed(model, "step_failed", message, "try solver auto or Radau, or tighter tolerances", element)
 
 
-def dead_centres(model, t: float, x) -> list:
+#: a run stops at a closure's dead centre once a guard is below this fraction of its threshold (the
+#: numpy backend checks every step: beyond, the rates grow like 1/guard and the steps shrink to nothing)
+DEAD_STOP = 1e-3
+
+
+def dead_centres(model, t: float, x, scale: float = 1.0) -> list:
     """``(element, text, value, threshold)`` of every closure guard of ``model`` (see
-    :class:`multipole.network.Closure`) whose magnitude is below its threshold at (t, x)."""
+    :class:`multipole.network.Closure`) whose magnitude is below ``scale`` times its threshold at (t, x)."""
     fun, texts = getattr(model, "guards", None), getattr(model, "guard_text", [])
     if fun is None or not texts or x is None:
         return []
@@ -859,7 +867,7 @@ def dead_centres(model, t: float, x) -> list:
             values = np.asarray(fun(float(t), np.asarray(x, dtype=float)), dtype=float)
     except (ArithmeticError, ValueError, TypeError):
         return []
-    return [(el, text, float(v), th) for (el, text, th), v in zip(texts, values) if abs(v) < th]
+    return [(el, text, float(v), th) for (el, text, th), v in zip(texts, values) if abs(v) < scale * th]
 
 
 def dead_centre(model, t: float, x, cause: str = "") -> SimulationError | None:

@@ -115,15 +115,22 @@ class Equations:
         return out
 
     def substituted(self, expr, max_ops: int = 400) -> sp.Expr:
-        """``expr`` in states, inputs and parameters only (where every block is symbolic)."""
+        """``expr`` in states, inputs and parameters only (where every block is symbolic), as far as
+        that stays printable: substitution stops once the expression passes ``max_ops`` operations
+        (a mechanism's torque, substituted to the end, had 190,000 characters and took minutes), and
+        the variables left are defined in the evaluation order."""
         defs = self.definitions()
         expr = sp.sympify(expr)
         for b in reversed(self.blocks):
             if b.solution is None:
                 continue
-            hit = {v: defs[v] for v in b.variables if v in expr.free_symbols}
+            free = expr.free_symbols
+            hit = {v: defs[v] for v in b.variables if v in free}
             if hit:
-                expr = expr.xreplace(hit)
+                grown = expr.xreplace(hit)
+                if sp.count_ops(grown) > max_ops:
+                    break
+                expr = grown
         expr = sp.expand(expr) if sp.count_ops(expr) < max_ops else expr
         if sp.count_ops(expr) >= max_ops // 4 or expr.atoms(sp.Function):
             return expr      # sympy's simplify of functions of the unknowns (tanh(73 + f) - pi/f) can run for
@@ -135,6 +142,7 @@ class Equations:
         for s, x0 in zip(self.states, self.initial_values()):
             lines.append(f"  {s.name}  [{s.unit}]  initial {x0:g}")
         show, who = self.netlist_names()
+        show = _capped(show)
         if self.inputs:
             lines += ["", "Inputs:"] + [f"  {u} = {show(e)}" for u, e in self.inputs.items()]
         values = {str(e): show(e) for e in self.inputs.values() if str(e) != show(e)}
@@ -228,6 +236,7 @@ class Equations:
     def chain(self, name, expr, shown=None) -> list[str]:
         """One substitution per line from ``expr`` back to states and inputs."""
         show, who = shown or self.netlist_names()
+        show = _capped(show)
         defs = self.definitions()
         owner = {v: (b.owners[0] if b.kind == "explicit" else "loop") for b in self.blocks for v in b.variables}
         lines = [f"  {name}", f"    = {show(expr)}"]
@@ -238,8 +247,11 @@ class Equations:
                 break
             v = max(pending, key=lambda s: self._order(s))
             expr = sp.sympify(expr).xreplace({v: defs[v]})
-            lines.append(f"    = {show(expr)}    [{show(v)} from {who(owner.get(v, '?'))}]")
+            text = show(expr)
+            lines.append(f"    = {text}    [{show(v)} from {who(owner.get(v, '?'))}]")
             seen += 1
+            if text.endswith(_CUT):          # longer with every substitution: the rest is code, not reading
+                break
         return lines
 
     def _order(self, sym) -> int:
@@ -504,6 +516,23 @@ def _split_block(A, b, zs, owners, notes, params) -> list:
         out.append(Block("linear", core, sol, res, c_owners, c_notes, A2, b2))
     out += [Block("explicit", [z], [expr], [z - expr], [o], [note]) for z, expr, o, note in reversed(gone)]
     return out
+
+
+#: printed expressions are cut at this many characters (a mechanism's substituted torque ran to 190,000)
+PRINT_LIMIT = 1500
+_CUT = "(cut: see --format python)"
+
+
+def _capped(show):
+    """``show`` with texts longer than :data:`PRINT_LIMIT` cut and marked."""
+    if getattr(show, "capped", False):
+        return show
+
+    def capped(expr):
+        text = show(expr)
+        return text if len(text) <= PRINT_LIMIT else f"{text[:PRINT_LIMIT]} … {_CUT}"
+    capped.capped = True
+    return capped
 
 
 def closed_symbol(state) -> sp.Symbol:

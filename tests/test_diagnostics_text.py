@@ -322,7 +322,9 @@ def internal_names_in_equations(text: str, flat) -> list:
     """Internal names in the equation text or an output list, where port variables belong (so the
     port-variable pattern of :data:`INTERNAL` is replaced by: every ``x.y.e`` names a netlist port
     or a numbered inner variable of an element)."""
-    bad = [f"{what}: {m.group(0)!r}" for rx, what in INTERNAL[:3] + INTERNAL[4:5] for m in [rx.search(text)] if m]
+    bad = [f"{what}: {m.group(0)!r}" for rx, what in INTERNAL[:3] for m in [rx.search(text)] if m]
+    rx, what = INTERNAL[4]            # an element's quantity may carry such a name (a roll's friction torque)
+    bad += [f"{what}: {m.group(0)!r}" for m in rx.finditer(text) if m.group(0) not in flat.quantities][:1]
     return bad + [f"a port variable no netlist port shows: {m.group(0)!r}" for m in PORT_VARIABLE.finditer(text)
                   if m.group(1) not in flat.external_ports and not re.fullmatch(r"\w+\.inner\d+", m.group(1))]
 

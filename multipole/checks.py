@@ -675,7 +675,7 @@ def algebraic_loop(ctx: Context):
           "relations) and the structural order: which element determines which bodies, anchored on what")
 def mobility(ctx: Context):
     flat = ctx.flat
-    if not flat.closures and not flat.position_reads:
+    if not flat.closures:               # nothing closes a loop (a drive alone, a 1-D band): no mobility to count
         return
     g = position_graph(flat)
     if not nx.is_directed_acyclic_graph(g):

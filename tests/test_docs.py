@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 from refresh_doc_outputs import blocks, command_output  # noqa: E402
 
-PAGES = ["docs/getting-started.md"]
+PAGES = ["docs/getting-started.md", "docs/linkages.md"]
 NUMBER = re.compile(r"(?<![\w.])[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 TIMING = re.compile(r"wall [0-9.e+-]+ s(, compile [0-9.e+-]+ s|, model from cache)?")
 #: Relative bound on a solver counter between the documented run and this machine's.

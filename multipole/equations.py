@@ -476,11 +476,9 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         first = len(blocks)
         if len(zs) <= SYMBOLIC_LIMIT:
             sol = A.LUsolve(b)
-            # cancel only where the coefficients are constants: a mechanism's trigonometric ones made
-            # cancel the bulk of its check (12 s of the 8-link mechanism's); the code generator's
-            # common-subexpression elimination takes care of what cancel would have shortened
-            if not any(a.free_symbols - params.keys() for a in A.values()):
-                sol = [sp.cancel(sp.together(s)) if sp.count_ops(s) < 300 else s for s in sol]
+            # cancel removes common factors that vanish at a mechanism's dead centres (0/0 in the
+            # uncancelled quotient of the slider-crank); it costs the 8-link mechanism's check 12 s
+            sol = [sp.cancel(sp.together(s)) if sp.count_ops(s) < 300 else s for s in sol]
             blocks.append(Block("linear", zs, sol, res, owners, notes, A, b))
         else:
             blocks += _split_block(A, b, zs, owners, notes, analysis.flat.param_values())

@@ -87,6 +87,7 @@ def _numeric_loops(monkeypatch):
     formula): the path of large loops, taken here by small ones."""
     import multipole.equations
     monkeypatch.setattr(multipole.equations, "SYMBOLIC_LIMIT", 0)
+    monkeypatch.setattr(multipole.equations, "CORE_SYMBOLIC_LIMIT", 0)     # and no core of a split loop either
 
 
 def _has_numeric_loop(sc) -> bool:

@@ -115,6 +115,14 @@ def link(points: list, m, J, xs, ys, phi0, omega_ports=(), p0=(None, None, None)
 #: |sine of the transmission angle| below which a dyad is reported at its dead centre during a run
 DEAD_CENTRE = 0.1
 
+def check_mode(kind: str, K, meaning: str) -> None:
+    """Refuse an assembly mode other than +1 or -1 (``bad_assembly_mode``); ``meaning`` says what the
+    two modes are for this module."""
+    if K not in (1, -1, 1.0, -1.0):
+        from multipole import ModelError
+        raise ModelError("bad_assembly_mode", f"{kind}: K = {K!r} must be +1 or -1", meaning)
+
+
 def _drive_state(m, J) -> list:
     """The momentum a drive keeps as a state when its mechanism is driven by a torque or a force:
     the drive coordinate is regular through every position of the mechanism, a dependent link's
@@ -190,10 +198,7 @@ def DAN(l, phi0, omega0, xs, ys, m, J, gx, gy, x1, y1):
           "transmission": "-: sin(phi2 - phi1), the sine of the transmission angle (0 at the dead centre)"})
 def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
     """Dyad with three revolute joints (VDI 2729 DDD) [m, rad, kg, kg*m^2]."""
-    if K not in (1, -1, 1.0, -1.0):
-        from multipole import ModelError
-        raise ModelError("bad_assembly_mode", f"DDD: K = {K!r} must be +1 or -1",
-                         "K = +1 puts the joint P left of the line from P1 to P2, K = -1 right of it")
+    check_mode("DDD", K, "K = +1 puts the joint P left of the line from P1 to P2, K = -1 right of it")
     xs1 = l1 / 2 if xs1 is None else xs1
     xs2 = l2 / 2 if xs2 is None else xs2
     xa1, ya1, xa2, ya2 = (_S(n) for n in ("xa1", "ya1", "xa2", "ya2"))

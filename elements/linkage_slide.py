@@ -28,7 +28,7 @@ import sympy as sp
 
 from multipole import Closure, ModelError, Network, Param, Quantity, Se, Sf, Sketch, element, junction_b
 
-from .linkage import DEAD_CENTRE, _PLANAR_DOC, _anchor, _body, _gravity, _S, _zero, link
+from .linkage import DEAD_CENTRE, _PLANAR_DOC, _anchor, _body, _gravity, _S, _zero, check_mode, link
 
 
 def _guide_angle(name: str, port: str) -> Param:
@@ -40,13 +40,6 @@ def _guide_angle(name: str, port: str) -> Param:
 
 
 _cos, _sin = sp.cos, sp.sin
-
-
-def _check_mode(kind: str, K) -> None:
-    if K not in (1, -1, 1.0, -1.0):
-        raise ModelError("bad_assembly_mode", f"{kind}: K = {K!r} must be +1 or -1",
-                         "K = +1 takes the larger slider travel (the joint P on the side the guide's x axis "
-                         "points to, seen from the foot of the perpendicular from P1), K = -1 the smaller")
 
 
 def _travel_momenta(m, speed, phi):
@@ -173,7 +166,8 @@ def DDS(l, v, K, xsL, ysL, mL, JL, xsS, ysS, mS, JS, gx, gy, x1, y1, x2, y2, phi
     """Dyad with a prismatic joint as connection (VDI 2729 DDS) [m, rad, kg, kg*m^2].
 
     ``xsL``, ``ysL``: centre of mass of the link in its frame (origin P, x axis towards P1; default l/2)."""
-    _check_mode("DDS", K)
+    check_mode("DDS", K, "K = +1 takes the larger slider travel (the joint P on the side the guide's x axis "
+               "points to, seen from the foot of the perpendicular from P1), K = -1 the smaller")
     xsL = l / 2 if xsL is None else xsL
     xa1, ya1, xa2, ya2 = (_S(n) for n in ("xa1", "ya1", "xa2", "ya2"))
     phiU = _S("pa2") + _S("phi2")           # the guide against the plane of its anchor (as SSD, SDS, DSD)

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import Closure, ModelError, Network, Param, Quantity, Se, Sf, Sketch, element, junction_b
+from multipole import Closure, Network, Param, Quantity, Se, Sf, Sketch, element, junction_b
 
 from .linkage import DEAD_CENTRE, _PLANAR_DOC, _anchor, _body, _gravity, _S, _zero, check_mode, link
 

@@ -797,9 +797,10 @@ class ScipyIntegrator:
                     event = _first_crossing(model, dense, g_sign, watch, ode.t_old, ode.t)
                     if event is not None:
                         t_stop = event[0]
-                while k_out < len(t_grid) and t_grid[k_out] <= t_stop + 1e-12 * max(1.0, t_end):
-                    states[k_out] = dense(min(t_grid[k_out], ode.t))
-                    k_out += 1
+                k_end = int(np.searchsorted(t_grid, t_stop + 1e-12 * max(1.0, t_end), side="right"))
+                if k_end > k_out:           # the grid points inside the step, in one dense evaluation
+                    states[k_out:k_end] = dense.many(np.minimum(t_grid[k_out:k_end], ode.t))
+                    k_out = k_end
                 bar.update(t_stop)
             _accumulate(stats, ode, solver)
             if event is None:
@@ -1117,13 +1118,25 @@ class _Dense:
     def __init__(self, ode, stats):
         self.ode, self.stats, self.sol = ode, stats, None
 
-    def __call__(self, tt):
-        if tt == self.ode.t:
-            return self.ode.y
+    def _solution(self):
         if self.sol is None:
             self.sol = self.ode.dense_output()
             self.stats["dense_calls"] += 1
-        return self.sol(tt)
+        return self.sol
+
+    def __call__(self, tt):
+        if tt == self.ode.t:
+            return self.ode.y
+        return self._solution()(tt)
+
+    def many(self, tt: np.ndarray) -> np.ndarray:
+        """The states at the times ``tt`` [s] inside the step, one row each (the step's end exact)."""
+        at_end = tt == self.ode.t
+        if at_end.all():
+            return np.broadcast_to(self.ode.y, (len(tt), len(self.ode.y)))
+        rows = np.array(self._solution()(tt).T)
+        rows[at_end] = self.ode.y
+        return rows
 
 
 def _root(model, dense, k, t0, t1):

@@ -122,7 +122,7 @@ def test_drive_slips_exactly_when_the_tension_ratio_reaches_exp_mu_wrap():
     belt arc's inertia) while the slip speed grows and the driven pulley is pulled back."""
     res = pipeline.run(scene(TEXT), progress=False,
                        outputs=["p1.omega", "p2.omega", "tight.F", "slack.F", "p1.slip", "p2.slip", "p1.grip",
-                                "p2.grip", "p1.F1", "p1.F2", "p1.limit", "p1.friction", "p1.speed"])
+                                "p2.grip", "p1.F1", "p1.F2", "p1.limit", "p1.friction", "p1.speed", "p1.phi", "p1.torque"])
     limit = exp(MU * WRAP1)
     t_slip, Ft, Fs = _slip_time(10.0, limit)
     slips = [(t, what) for t, what in res.events if "p1.fr" in what]
@@ -152,6 +152,9 @@ def test_drive_slips_exactly_when_the_tension_ratio_reaches_exp_mu_wrap():
     np.testing.assert_allclose(res.outputs["p1.limit"], (res.outputs["tight.F"] + res.outputs["slack.F"])
                                * tanh(MU * WRAP1 / 2), rtol=1e-12)
     np.testing.assert_allclose(res.outputs["p1.friction"][after], -res.outputs["p1.limit"][after], rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["p1.torque"], R1 * res.outputs["p1.friction"], rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["p1.phi"], W1 * t, rtol=1e-9, atol=1e-12)   # driven at 10 rad/s
+    np.testing.assert_allclose(res.outputs["p1.omega"], W1, rtol=1e-12)
 
 
 def test_slip_and_stick_switching_keeps_the_step_size():

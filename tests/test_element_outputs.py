@@ -561,7 +561,8 @@ CHECKED = {
 #: quantity must be read there (as ``.name`` of an output)
 CHECKED_IN = {**{k: ("test_linkage_dynamics.py", "test_linkage_slide.py", "test_linkage_guides.py")
                  for k in ("DAN", "DDD", "SAN", "FGP", "DDS", "DSD", "SSD", "SDS")},
-              **{k: ("test_belts.py",) for k in ("band", "band_roll", "drum")}}
+              **{k: ("test_belts.py",) for k in ("band", "band_roll", "drum")},
+              "belt_pulley": ("test_belt_friction.py",)}
 
 
 def test_every_documented_output_is_checked():

@@ -1,0 +1,228 @@
+"""Planar bands after Ebert (2015, §4.4.1, §4.4.4): spans between moving rolls, rolls on planar ports.
+
+``planar_band`` is the elastic span of :func:`elements.belt.band` whose end points are the common
+tangent points of two circles: it reads the positions of the circles' centres from its planar ports
+``p1``/``p2`` (a roll's centre port ``c``, a linkage output, or the frame when unconnected), knows
+their radii ``r1``/``r2`` and wrap senses ``s1``/``s2`` and provides the inclination ``gamma`` of the
+span to the rolls at its band ports.  ``planar_roll`` is the circular roll of
+:func:`elements.belt.band_roll` whose bearing is a planar port ``a`` (a linkage output, or the frame).
+
+Geometry (signed radii, one tangent per pair of wrap senses).  With the unit vector t = (cos g,
+sin g) of the span (from end 1 to end 2) and its left normal n = (-sin g, cos g), the tangent
+points are K_i = C_i + rho_i n with rho_1 = -s1 r1 and rho_2 = s2 r2, so
+d = C2 - C1 = l_B t - Delta n with Delta = rho_2 - rho_1 = s1 r1 + s2 r2, and
+
+    l_B = sqrt(|d|^2 - Delta^2),   g = atan2(d_y, d_x) + atan2(Delta, l_B)       (at t = 0 only)
+    n . d + Delta = 0                                                            (the closure on g)
+
+The wrap sense s_i = cross(K_i - C_i, t_i)/r_i (t_i the direction from K_i into the span) is +1 if
+a positive (counter-clockwise) rotation of the roll pays band out into this span: the roll's ``w``
+at its port ``e1`` and ``-w`` at ``e2``.  The inclination ``g`` is the integral of its rate (never
+wrapped), held on the tangent by the closure, solved at every evaluation; its start value is the
+formula above (the half-plane choice of Ebert's table 4.16 is made by the wrap senses).
+
+Power (derived in ``docs/belts.md``).  The true wound length delivered by a roll is
+l_r = s r [(phi - phi0) - (g - g0)] (Ebert 4.95 corrected, erratum E4); with l_B' = t.d' -
+Delta g', the stretch delta = l_B - l_x (l_x = l0 + l_r1 + l_r2) has the rate
+
+    delta' = t . (v_C2 - v_C1) - s1 r1 phi1' - s2 r2 phi2'
+
+so the band bond carries the roll's surface speed s r phi' (as for the 1-D roll), the span pulls
+the centres with -F t and +F t, the rolls feel the torque s r F, and ``gamma`` carries no torque.
+Units: SI (m, rad, N, N*s, kg, kg*m^2).
+"""
+from __future__ import annotations
+
+import math
+
+import sympy as sp
+
+from multipole import (MTF, C, Closure, I, Network, Param, Quantity, R, Se, Sketch, Tap, element, junction_a,
+                       junction_b)
+from multipole.errors import ModelError
+
+from .belt import _BAND, _roll
+from .linkage import _zero
+
+_S = sp.Symbol
+_PLANAR = "planar bundle (x, y [m], phi [rad]; Fx, Fy [N], T [N*m])"
+#: points of the polygon that draws a roll's circle
+_CIRCLE = 24
+
+
+def _sense(kind: str, name: str, value) -> int:
+    if value not in (1, -1, 1.0, -1.0):
+        raise ModelError("bad_wrap_sense", f"{kind}: {name} = {value!r} must be +1 or -1",
+                         "+1 if a counter-clockwise rotation of the roll pays band out into this span "
+                         "(the roll's w at its port e1, -w at e2)")
+    return int(value)
+
+
+def tangent(x1, y1, r1, s1, x2, y2, r2, s2):
+    """The common tangent from circle 1 to circle 2 with wrap senses ``s1``, ``s2`` (see the module
+    docstring): ``(l_B, gamma, K1, K2)`` [m, rad, (x, y) m] as sympy expressions (or floats).  The
+    circles must leave room for the tangent: ``|C2 - C1| > |s1 r1 + s2 r2|``."""
+    f = sp if any(isinstance(v, sp.Basic) for v in (x1, y1, r1, x2, y2, r2)) else math
+    dx, dy, delta = x2 - x1, y2 - y1, s1 * r1 + s2 * r2
+    lb = f.sqrt(dx ** 2 + dy ** 2 - delta ** 2)
+    g = f.atan2(dy, dx) + f.atan2(delta, lb)
+    n = (-f.sin(g), f.cos(g))
+    return lb, g, (x1 - s1 * r1 * n[0], y1 - s1 * r1 * n[1]), (x2 + s2 * r2 * n[0], y2 + s2 * r2 * n[1])
+
+
+@element("planar_band", "elastic band span between two circles (Ebert 4.4.1 on planar ports): the common tangent "
+         "of the circles about the centres read at p1, p2 with radii r1, r2 and wrap senses s1, s2; "
+         "tension-only Kelvin-Voigt band, stiffness EA/l_x",
+         {"e1": f"band end at circle 1 ({_BAND}); held (band tied) if not connected",
+          "e2": f"band end at circle 2 ({_BAND}); held (band tied) if not connected",
+          "p1": f"centre of circle 1 ({_PLANAR}; the span pulls it, no torque): a roll's port c, a "
+                "linkage output; frame-fixed at (x1, y1) if not connected",
+          "p2": f"centre of circle 2 ({_PLANAR}); frame-fixed at (x2, y2) if not connected"},
+         [Param("EA", "N", "axial stiffness times length (k = EA/l_x)", 1e5, positive=True),
+          Param("cd", "N*s", "axial damping times length (b = cd/l_x)", 0.0, nonnegative=True),
+          Param("F0", "N", "tension at t = 0 (sets the free length l0 = EA l_B(0)/(EA + F0))", 0.0,
+                nonnegative=True),
+          Param("r1", "m", "radius of circle 1 (0: a point, a band end tied to a link)", 0.0, nonnegative=True),
+          Param("s1", "-", "wrap sense at circle 1: +1 if a counter-clockwise rotation of roll 1 pays band out "
+                "into the span (the roll's w at e1, -w at e2)", 1.0),
+          Param("r2", "m", "radius of circle 2", 0.0, nonnegative=True),
+          Param("s2", "-", "wrap sense at circle 2 (as s1)", 1.0),
+          Param("x1", "m", "frame position x of centre 1 when p1 is not connected", 0.0),
+          Param("y1", "m", "frame position y of centre 1 when p1 is not connected", 0.0),
+          Param("x2", "m", "frame position x of centre 2 when p2 is not connected", 1.0),
+          Param("y2", "m", "frame position y of centre 2 when p2 is not connected", 0.0)],
+         {"F": "N: band tension (>= 0)", "stretch": "m: l_B - l_x (> 0 taut, <= 0 slack)",
+          "length": "m: span length l_B between the tangent points", "free": "m: free length l_x = l_B - stretch",
+          "gamma": "rad: inclination of the span from circle 1 to circle 2 (continuous, not wrapped)",
+          "rate": "m/s: stretch rate", "xK1": "m: x of the tangent point on circle 1",
+          "yK1": "m: y of the tangent point on circle 1", "xK2": "m: x of the tangent point on circle 2",
+          "yK2": "m: y of the tangent point on circle 2"})
+def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
+    """Planar elastic span [EA, F0 in N, cd in N*s, lengths in m]."""
+    s1, s2 = _sense("planar_band", "s1", s1), _sense("planar_band", "s2", s2)
+    xa, ya, xb, yb, g = _S("xa"), _S("ya"), _S("xb"), _S("yb"), _S("gam")
+    dx, dy = xb - xa, yb - ya
+    delta = _S("s1") * _S("r1") + _S("s2") * _S("r2")
+    c, s = sp.cos(g), sp.sin(g)
+    lb = c * dx + s * dy                          # t . d: the span length on the tangent
+    lb0, g0, _k1, _k2 = tangent(xa, ya, _S("r1"), _S("s1"), xb, yb, _S("r2"), _S("s2"))
+    q, f = _S("delta"), _S("f")
+    lx = lb - q
+    children = {
+        # a1: t . (v2 - v1), the stretch rate of the span seen from the centres; a2: gamma'
+        "K": MTF([[-c, -s, c, s], [s / lb, -c / lb, -s / lb, c / lb]], ["translational", "rotational"],
+                 ["translational"] * 4),
+        # common tension: e_s = F (the pull on the span along t), e_e1 = e_e2 = -F; x carries delta'
+        "J": junction_a(["s", "e1", "e2", "x"], "translational", [1, -1, -1, -1]),
+        "X": junction_b(["x", "c", "r"], "translational"),
+        "c": C(law=_S("EA") / lx * sp.Max(q, 0), dom="translational",
+               q0=_S("F0") * lb0 / (_S("EA") + _S("F0"))),
+        "r": R(law=sp.Heaviside(q) * sp.Max(-_S("EA") / lx * q, _S("cd") / lx * f), dom="translational"),
+        # gamma' to both band ports (no torque) and its integral, the closure-bound inclination
+        "G": junction_b(["k", "e1", "e2", "tap"], "rotational"),
+        "tap": Tap("rotational", q0=g0),
+        "t1": Se(0, "rotational"), "t2": Se(0, "rotational")}
+    connections = [["K.a1", "J.s"], ["J.x", "X.x"], ["X.c", "c.p"], ["X.r", "r.p"], ["K.a2", "G.k"],
+                   ["G.tap", "tap.p"]]
+    ports = {"e1.l": "J.e1", "e1.gamma": "G.e1", "e2.l": "J.e2", "e2.gamma": "G.e2",
+             "p1.x": "K.b1", "p1.y": "K.b2", "p1.phi": "t1.p", "p2.x": "K.b3", "p2.y": "K.b4", "p2.phi": "t2.p"}
+    params = {"EA": EA, "cd": cd, "F0": F0, "r1": r1, "s1": s1, "r2": r2, "s2": s2,
+              "x1": x1, "y1": y1, "x2": x2, "y2": y2}
+    k1 = (xa - _S("s1") * _S("r1") * -s, ya - _S("s1") * _S("r1") * c)
+    k2 = (xb + _S("s2") * _S("r2") * -s, yb + _S("s2") * _S("r2") * c)
+    closure = Closure(["tap.q"], [-s * dx + c * dy + delta],
+                      "the span on the common tangent of the two circles",
+                      conditions=[(dx ** 2 + dy ** 2 - delta ** 2, "the circles leave no room for the tangent: "
+                                   "|C2 - C1| must exceed |s1 r1 + s2 r2|", "m^2")],
+                      guard=(lb, 1e-6, "span length"))
+
+    def local(expr):
+        """``expr`` in the flattened names: the position reads and the inclination state."""
+        return lambda V: sp.sympify(expr).xreplace({sym: V.param(sym.name) for sym in (xa, ya, xb, yb)}
+                                                   | {g: V.x("tap.q")} | {_S(n): V.param(n) for n in ("r1", "r2",
+                                                                                                        "s1", "s2")})
+
+    def qv(expr):
+        return Quantity(local(expr))
+
+    q_ = {"F": Quantity(lambda V: V.e("J.s")), "stretch": Quantity(lambda V: V.x("c.q")),
+          "length": qv(lb), "free": Quantity(lambda V: local(lb)(V) - V.x("c.q")),
+          "gamma": Quantity(lambda V: V.x("tap.q")), "rate": Quantity(lambda V: V.f("c.p")),
+          "xK1": qv(k1[0]), "yK1": qv(k1[1]), "xK2": qv(k2[0]), "yK2": qv(k2[1])}
+    return Network("planar_band", children, connections, ports, params, q_, signals={"delta": "c.q", "gam": "tap.q"},
+                   bundles={"e1": "band", "e2": "band", "p1": "planar", "p2": "planar"},
+                   positions={"e1.gamma": g, "e2.gamma": g},
+                   reads={"xa": ("p1.x", _S("x1")), "ya": ("p1.y", _S("y1")),
+                          "xb": ("p2.x", _S("x2")), "yb": ("p2.y", _S("y2"))},
+                   fixed=("e1.l", "e2.l", "p1.x", "p1.y", "p1.phi", "p2.x", "p2.y", "p2.phi"),
+                   closures=[closure], sketch=[Sketch([k1, k2], ["", ""], style="slide")])
+
+
+@element("planar_roll", "circular band roll on a planar bearing (Ebert 4.4.4, corrected): the roll of band_roll "
+         "(no-slip winding at radius r, inertia J) whose axis is the planar port a; the spans pull its centre "
+         "through the port c",
+         {"a": f"bearing ({_PLANAR}): the axis, e.g. a lever's output; frame-fixed at (x, y) if not connected; "
+               "the bearing is frictionless (no torque on the housing)",
+          "c": f"centre of the roll seen by the spans ({_PLANAR}): join it to the spans' p1/p2 ports; it moves "
+               "with a, and the span forces on it act on a",
+          "e1": f"band port 1 ({_BAND}): a span with wrap sense s = w there",
+          "e2": f"band port 2 ({_BAND}): a span with wrap sense s = -w there",
+          "drive": "1-D rotational port on the roll (absolute angular velocity [rad/s], torque on the roll [N*m])"},
+         [Param("r", "m", "roll radius (to the band's neutral layer)", 0.05, positive=True),
+          Param("J", "kg*m^2", "moment of inertia about the axis", 1e-3, positive=True),
+          Param("phi0", "rad", "initial roll angle (absolute)", 0.0),
+          Param("omega0", "rad/s", "initial angular velocity (absolute)", 0.0),
+          Param("w", "-", "winding sense: +1: a counter-clockwise rotation pays band out at e1 (winds in at e2)",
+                1.0),
+          Param("m", "kg", "mass of the roll on its axis (0: carried by the bearing's body only)", 0.0,
+                nonnegative=True),
+          Param("gx", "m/s^2", "gravity, x component", 0.0), Param("gy", "m/s^2", "gravity, y component", -9.81),
+          Param("x", "m", "frame position x of the axis when a is not connected", 0.0),
+          Param("y", "m", "frame position y of the axis when a is not connected", 0.0)],
+         {"phi": "rad: roll angle", "omega": "rad/s: angular velocity", "F1": "N: band tension at e1",
+          "F2": "N: band tension at e2", "lr1": "m: band wound off into the span at e1, "
+          "w r [(phi - phi0) - (gamma1 - gamma1(0))]", "lr2": "m: band wound off at e2, "
+          "-w r [(phi - phi0) - (gamma2 - gamma2(0))]", "Fx": "N: x force of the spans on the axis",
+          "Fy": "N: y force of the spans on the axis", "x": "m: x of the axis", "y": "m: y of the axis"})
+def planar_roll(r, J, phi0, omega0, w, m, gx, gy, x, y):
+    """Circular roll on a planar bearing [r in m, J in kg*m^2, angles in rad, m in kg]."""
+    # the 1-D roll with its parameters bound to this element's (a scene's expression like
+    # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense)
+    roll = _roll("planar_roll", 2, _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0, math.pi)
+    children = {"R": roll}
+    connections, ports = [], {"drive": "R.drive", "e1.l": "R.e1.l", "e2.l": "R.e2.l", "a.phi": "H.a",
+                              "c.phi": "H.c"}
+    children["H"] = junction_b(["a", "c"], "rotational")     # the housing angle, handed from a to c
+    for axis in "xy":
+        names = ["a", "c"] + ([] if _zero(m) else ["m", "g"])
+        children[f"{axis}J"] = junction_b(names, "translational")
+        ports[f"a.{axis}"], ports[f"c.{axis}"] = f"{axis}J.a", f"{axis}J.c"
+        if not _zero(m):
+            children[f"m{axis}"] = I(J=_S("m"), dom="translational", p0=None)
+            children[f"g{axis}"] = Se(_S("m") * _S(f"g{axis}"), "translational")
+            connections += [[f"{axis}J.m", f"m{axis}.p"], [f"{axis}J.g", f"g{axis}.p"]]
+    # the band ports' gamma: no torque; a tap integrates gamma - gamma(0) for the wound lengths
+    for k in (1, 2):
+        children[f"G{k}"] = junction_b(["o", "i", "tap"], "rotational")
+        children[f"tap{k}"] = Tap("rotational", q0=0)
+        connections += [[f"G{k}.i", f"R.e{k}.gamma"], [f"G{k}.tap", f"tap{k}.p"]]
+        ports[f"e{k}.gamma"] = f"G{k}.o"
+    xa, ya, pa = _S("xa"), _S("ya"), _S("pa")
+    params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": int(w) if w in (1, -1) else w, "m": m,
+              "gx": gx, "gy": gy, "x": x, "y": y}
+    q = {"phi": Quantity(lambda V: V.x("R.tap.q")), "omega": Quantity(lambda V: V.f("R.drive")),
+         "F1": Quantity(lambda V: V.e("R.T1.a")), "F2": Quantity(lambda V: V.e("R.T2.a")),
+         "lr1": Quantity(lambda V: V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap1.q"))),
+         "lr2": Quantity(lambda V: -V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap2.q"))),
+         "Fx": Quantity(lambda V: V.e("xJ.c")), "Fy": Quantity(lambda V: V.e("yJ.c")),
+         "x": Quantity(lambda V: V.param("xa")), "y": Quantity(lambda V: V.param("ya"))}
+    ph = _S("rphi")
+    circle = [(xa + _S("r") * sp.cos(ph + 2 * math.pi * k / _CIRCLE), ya + _S("r") * sp.sin(ph + 2 * math.pi * k / _CIRCLE))
+              for k in range(_CIRCLE + 1)]
+    return Network("planar_roll", children, connections, ports, params, q, signals={"rphi": "R.tap.q"},
+                   bundles={"a": "planar", "c": "planar", "e1": "band", "e2": "band"},
+                   positions={"c.x": xa, "c.y": ya, "c.phi": pa},
+                   reads={"xa": ("a.x", _S("x")), "ya": ("a.y", _S("y")), "pa": ("a.phi", 0)},
+                   fixed=("a.x", "a.y", "a.phi", "e1.gamma", "e2.gamma"),
+                   sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="slide"),
+                           Sketch([(xa, ya), circle[0]], ["", ""], style="link")])

@@ -18,6 +18,7 @@ from . import pipeline
 from .catalogue import catalogue
 from .errors import IllPosedError, LongRunWarning, MultipoleError, MultipoleWarning, RunError
 from .netlist import load, validate_simulate_options
+from .simulate import monitor_line
 
 #: exit status after Ctrl-C (128 + SIGINT, as shells report it)
 EXIT_INTERRUPTED = 130
@@ -143,6 +144,8 @@ def cmd_simulate(args) -> int:
     print(f"{scene.name}: {result.summary()}")
     for note in result.stats.get("warnings", []):
         print(f"multipole: warning: during the run: {note}", file=sys.stderr)
+    for finding in result.monitors:
+        print(f"multipole: warning: {monitor_line(finding)}", file=sys.stderr)
     written = []
     try:
         if args.out:

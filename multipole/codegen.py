@@ -251,7 +251,32 @@ def switch_list(writer) -> list:
     for s in (s for e in exprs for s in switching_functions(e) if s.free_symbols):
         if s not in out and -s not in out:
             out[s] = None
-    return list(out)
+    return list(out) + [sp.sympify(e) for e, _m, _o in computable_monitors(writer.eq)]
+
+
+def computable_monitors(eq) -> list:
+    """The monitors ``(expr, Monitor, element)`` of ``eq`` (:class:`multipole.network.Monitor`) that its
+    states, parameters, inputs and computed variables determine (pruning may have dropped the states
+    of others).  They follow the switching functions of the laws in :func:`switch_list`: a monitor is
+    located like a switching event on every backend, but no law reads its side."""
+    known = {s.symbol for s in eq.states} | set(eq.params) | set(eq.inputs) | {T}
+    known |= {v for b in eq.blocks for v in b.variables}
+    return [m for m in getattr(eq, "monitors", []) if sp.sympify(m[0]).free_symbols <= known]
+
+
+def modal_switches(writer, sw) -> dict:
+    """``{switching function: index}`` of the switches in ``sw`` that laws hold on a side (the
+    monitors at its end are left out)."""
+    n = len(sw) - len(computable_monitors(writer.eq))
+    return {g: k for k, g in enumerate(sw[:n])}
+
+
+def monitor_lines(writer, sw) -> list:
+    """``MONITORS``, generated code: ``(switch index, element, code, text, stop, fix)`` per monitor."""
+    mons = computable_monitors(writer.eq)
+    first = len(sw) - len(mons)
+    return ["MONITORS = " + repr([(first + k, owner, m.code, m.text, bool(m.stop), m.fix)
+                                  for k, (_e, m, owner) in enumerate(mons)])]
 
 
 _PERIODIC = (sp.sin, sp.cos, sp.tan, sp.cot, sp.sec, sp.csc)
@@ -268,8 +293,14 @@ def time_switches(writer, sw) -> tuple[list, list, list]:
     states = set(writer.states)
     inputs = {u: sp.sympify(e) for u, e in writer.eq.inputs.items()}
     time_only, rate, roots = [], [], []
-    for g in sw:
+    first_monitor = len(sw) - len(computable_monitors(writer.eq))
+    for k, g in enumerate(sw):
         units = _closure(writer.units, g.free_symbols)
+        if k >= first_monitor:          # a monitor is always watched: a stop ends the run where it crosses
+            time_only.append(False)
+            rate.append(0.0)
+            roots.append(None)
+            continue
         syms = set(g.free_symbols).union(*(u.deps for u in units))
         syms |= set().union(*(inputs[u].free_symbols for u in syms if u in inputs))
         if syms & states or syms & set(writer.runtime) or any(u.kind != "assign" for u in units):
@@ -371,8 +402,8 @@ class Model:
         self.switch_roots = list(namespace.get("SWITCH_ROOTS", [None] * self.n_switches))
         self.values = namespace["values"]
         self.value_names = namespace["VALUE_NAMES"]
-        #: the closures' dead-centre guards: ``guards(t, x)`` and ``(element, text, threshold)`` each
-        self.guards, self.guard_text = namespace.get("guards"), namespace.get("GUARD_TEXT", [])
+        #: the monitors: ``(switch index, element, code, text, stop, fix)`` (see :func:`monitor_lines`)
+        self.monitors = list(namespace.get("MONITORS", []))
         self._namespace = namespace
         #: names of the parameters read at run time from ``_P`` (see :meth:`set_parameters`)
         self.runtime = list(meta.get("runtime", []))
@@ -967,28 +998,6 @@ AFFINE_MIN_STATES = 40
 SPARSE_JACOBIAN_STATES = AFFINE_MIN_STATES
 
 
-def computable_guards(eq: Equations) -> list:
-    """The closures' dead-centre guards ``(expr, threshold, text, element)`` of ``eq`` that its
-    states, parameters and inputs compute (pruning may have dropped the states of others)."""
-    known = {s.symbol for s in eq.states} | set(eq.params) | set(eq.inputs) | {T}
-    return [g for g in getattr(eq, "guards", []) if sp.sympify(g[0]).free_symbols <= known]
-
-
-def guard_function(eq: Equations):
-    """``(guards(t, x), [(element, text, threshold), ...])`` for a backend whose model is not this
-    module's generated source (numpy through sympy's lambdify); ``(None, [])`` without guards."""
-    guards = computable_guards(eq)
-    if not guards:
-        return None, []
-    x = sp.MatrixSymbol("x", len(eq.states), 1)
-    subs = {s.symbol: x[k, 0] for k, s in enumerate(eq.states)}
-    subs.update({u: sp.sympify(e) for u, e in eq.inputs.items()})
-    exprs = [sp.sympify(g[0]).xreplace(subs).xreplace(eq.params) for g in guards]
-    fun = sp.lambdify([T, x], exprs, "numpy")
-    return (lambda t, xs: fun(t, np.asarray(xs, dtype=float).reshape(-1, 1))), \
-        [(el, text, float(th)) for _e, th, text, el in guards]
-
-
 def generate(eq: Equations, outputs=(), runtime=()) -> str:
     """Python source of the model functions for ``eq``.
 
@@ -1025,21 +1034,17 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
                       f"np.array([{', '.join(P(e) for e in out_exprs)}], dtype=float)")
     every = list(eq.inputs) + [v for b in eq.blocks for v in b.variables]
     src += ["VALUE_NAMES = " + repr([v.name for v in every])]
-    guards = computable_guards(eq)
-    src += ["GUARD_TEXT = " + repr([(el, text, float(th)) for _e, th, text, el in guards])]
-    src += w.function("guards", "The closures' dead-centre guards (multipole.network.Closure.guard).",
-                      set().union(*(sp.sympify(g[0]).free_symbols for g in guards)),
-                      f"[{', '.join(P(sp.sympify(g[0])) for g in guards)}]")
     src += w.function("values", "Every input and computed variable, in evaluation order.", every,
                       f"[{', '.join(N[v] for v in every)}]")
     sw = switch_list(w)
     needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
     src += [f"N_SWITCHES = {len(sw)}", f"SWITCH_TEXT = {[str(s) for s in sw]!r}"] + time_switch_lines(w, sw)
+    src += monitor_lines(w, sw)
     src += w.function("switches", "Switching functions: a sign change is an event.", needed,
                       f"[{', '.join(P(s) for s in sw)}]")
     src += w.affine_jacobian(sparse) if affine is not None else w.jacobian("jac", sparse)
     if sw:        # the same right-hand side and Jacobian with every switch held on one side
-        w.locked({g: k for k, g in enumerate(sw)})
+        w.locked(modal_switches(w, sw))
         src += ["_mode = [1.0] * N_SWITCHES", ""]
         src += w.function("rhs_in_mode", "d/dt of the states with every switch on the side _mode says.",
                           eq.derivatives, f"np.array([{ders()}])", ["    _stats['rhs_calls'] += 1"])

@@ -67,8 +67,9 @@ class Equations:
     diagnostics: list = field(default_factory=list)
     units: dict = field(default_factory=dict)   # output name -> SI unit
     analysis: Analysis | None = None
-    #: (expr, threshold, text, element) of the closures' dead-centre guards (in integrated states)
-    guards: list = field(default_factory=list)
+    #: ``(expr, Monitor, element)`` of the elements' run-time monitors (:class:`multipole.network.Monitor`;
+    #: states are their integrated values), the closures' dead-centre guards among them
+    monitors: list = field(default_factory=list)
 
     # -- look-ups --------------------------------------------------------------------------------
     @property
@@ -491,7 +492,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         _use_closed(blocks, available, closed)
     eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
                    analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis,
-                   guards=list(analysis.flat.guards))
+                   monitors=list(analysis.flat.monitors))
     _loops_at_start(eq)
     if analysis.demoted:
         report = _consistent_start(eq, analysis.demoted)

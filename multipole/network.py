@@ -60,9 +60,53 @@ class Closure:
     #: in ``unit``, it fails: a radicand of the start formula, a reach minus a distance)
     conditions: list = field(default_factory=list)
     #: ``(expr, threshold, text)``: the closure's Jacobian with respect to its states is singular
-    #: (a dead centre) where ``expr`` is 0; a run in which ``|expr|`` falls below ``threshold``
-    #: reports ``text`` with the time (and stops with ``dead_centre`` if the integration fails there)
+    #: (a dead centre) where ``expr`` is 0; flattening turns it into two :class:`Monitor` records
+    #: (:func:`guard_monitors`): a run in which ``|expr|`` falls below ``threshold`` reports
+    #: ``near_dead_centre``, one in which it falls below :data:`DEAD_STOP` times it stops with ``dead_centre``
     guard: tuple | None = None
+
+
+#: a closure's dead-centre guard stops the run once ``|expr|`` falls below this fraction of its
+#: threshold (beyond it the rates grow like 1/guard and the steps shrink to nothing)
+DEAD_STOP = 1e-3
+
+
+@dataclass
+class Monitor:
+    """A run-time check an element declares: the run reports it when ``expr`` crosses from ``>= 0``
+    to ``< 0``.
+
+    ``expr``: an expression in the network's local names (parameters, signals, position reads, as a
+    :class:`Closure` residual; states are their integrated values); ``code``: the diagnostic's code
+    (``band_lifts_off``); ``text``: what happened, one line without the element's name (the run
+    prefixes it).  The crossing is located like a switching event (to the event tolerance) on every
+    backend, but switches no law.  ``stop=False``: the finding ``(t [s], element, code, text)`` is
+    listed in :attr:`multipole.simulate.Result.monitors`, once per crossing, and the run goes on;
+    ``stop=True``: the run ends there with a run-time error carrying ``code``, the time and the
+    element (``fix``: what the user can do, for that error)."""
+
+    expr: object
+    code: str
+    text: str
+    stop: bool = False
+    fix: str = ""
+
+
+def guard_monitors(expr, threshold: float, text: str) -> list:
+    """The two monitors of a closure's dead-centre guard (:attr:`Closure.guard`): ``near_dead_centre``
+    where ``|expr|`` falls below ``threshold`` (the run goes on) and ``dead_centre`` where it falls
+    below :data:`DEAD_STOP` times it (the run stops)."""
+    threshold = float(threshold)
+    stop = DEAD_STOP * threshold
+    return [Monitor(sp.Abs(expr) - threshold, "near_dead_centre",
+                    f"comes near its dead centre (|{text}| below {threshold:g}): forces and rates there grow "
+                    f"like 1/{text}"),
+            Monitor(sp.Abs(expr) - stop, "dead_centre",
+                    f"reached its dead centre (|{text}| below {stop:g}): its closure cannot be solved beyond it, "
+                    "so the run stops", stop=True,
+                    fix="the motion prescribed upstream pushes the element through a position it cannot pass: "
+                        "drive the mechanism only over the range it can assemble (see the transfer function), "
+                        "or drive it at this element itself")]
 
 
 @dataclass
@@ -166,12 +210,13 @@ class Network:
     position of the node the port is joined to, as determined by the one element that provides it,
     or ``default`` if the port is not connected.  ``fixed``: external ports that are held (flow 0)
     when nobody connects them, instead of being free (effort 0): a bearing that is frame-fixed
-    unless attached.  ``closures``: :class:`Closure` records.
+    unless attached.  ``closures``: :class:`Closure` records.  ``monitors``: :class:`Monitor` records
+    (run-time checks in the same local names).
     """
 
     def __init__(self, kind: str, children: dict, connections=(), ports=None, params=None,
                  quantities=None, body: str | None = None, doc: str = "", prefer_state=None, signals=None,
-                 bundles=None, positions=None, reads=None, fixed=(), closures=(), sketch=()):
+                 bundles=None, positions=None, reads=None, fixed=(), closures=(), sketch=(), monitors=()):
         self.kind = kind
         self.children = dict(children)
         self.connections = [part for c in connections for part in expand_connection(list(c), self.children)]
@@ -188,6 +233,17 @@ class Network:
         self.fixed = list(fixed)
         self.closures = list(closures)
         self.sketch = list(sketch)
+        self.monitors = list(monitors)
+        for m in self.monitors:
+            if not isinstance(m, Monitor) or not isinstance(m.expr, (sp.Basic, int, float)) \
+                    or isinstance(m.expr, bool) or not (isinstance(m.code, str) and m.code.isidentifier()):
+                what = (f"{type(m).__name__}" if not isinstance(m, Monitor) else
+                        f"code {m.code!r}" if not (isinstance(m.code, str) and m.code.isidentifier())
+                        else f"expression {m.expr!r} ({type(m.expr).__name__})")
+                raise ModelError("bad_monitor", f"{kind}: a monitor needs a sympy expression and an identifier "
+                                 f"as its code, not {what}",
+                                 "declare each as Monitor(expr, code, text, stop=False) with expr a sympy "
+                                 "expression of the element's local names (never a string)")
         _refuse_band_branching(connections, self.children)
         for name, kind in self.bundles.items():
             missing = [p for p in bundle(kind).ports(name) if p not in self.ports]
@@ -271,7 +327,7 @@ class FlatNetwork:
     closures: list = field(default_factory=list)        # (state symbols, residual expressions, owner)
     sketches: list = field(default_factory=list)        # (owner, Sketch, [(x, y) global expressions])
     conditions: list = field(default_factory=list)      # (expr >= 0 at t = 0, text, unit, owner)
-    guards: list = field(default_factory=list)          # (expr, threshold, text, owner)
+    monitors: list = field(default_factory=list)        # (expr, Monitor, owner)
     bundles: dict = field(default_factory=dict)         # "elem.port" of a bundle -> bundle kind
     #: the position graph: primitive port path -> owner of the position it provides, and
     #: primitive port path of a read -> (owner that reads it, providing owner or None: the frame)
@@ -426,8 +482,10 @@ class _Flattener:
                 self.flat.conditions.append((self.resolve(expr, scope, f"{where} closure"), text, unit, where))
             if c.guard is not None:
                 expr, threshold, text = c.guard
-                self.flat.guards.append((self.resolve(expr, scope, f"{where} closure"), float(threshold), text,
-                                         where))
+                for m in guard_monitors(self.resolve(expr, scope, f"{where} closure"), threshold, text):
+                    self.flat.monitors.append((m.expr, m, where))
+        for m in net.monitors:
+            self.flat.monitors.append((self.resolve(m.expr, scope, f"{where} monitor {m.code}"), m, where))
         self.flat.elements[path or "<root>"] = net.kind
         self.flat.prefer_state += [_join(path, r) for r in net.prefer_state]
         for name, child in net.children.items():
@@ -556,7 +614,7 @@ class _Flattener:
                 eq.expr = eq.expr.xreplace(resolved)
         fl.closures = [(st, [sp.sympify(r).xreplace(resolved) for r in res], owner) for st, res, owner in fl.closures]
         fl.conditions = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.conditions]
-        fl.guards = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.guards]
+        fl.monitors = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.monitors]
         fl.quantities = {k: (sp.sympify(e).xreplace(resolved), u, d) for k, (e, u, d) in fl.quantities.items()}
         fl.sketches = [(o, sk, [tuple(sp.sympify(v).xreplace(resolved) for v in pt) for pt in pts])
                        for o, sk, pts in fl.sketches]

@@ -79,6 +79,8 @@ class Result:
     stats: dict = field(default_factory=dict)
     events: list = field(default_factory=list)   # (t, switching function text)
     units: dict = field(default_factory=dict)    # output name -> SI unit
+    #: the monitors that fired (:class:`multipole.network.Monitor`), in time order
+    monitors: list = field(default_factory=list)
 
     def __getitem__(self, name):
         if name in self.outputs:
@@ -125,7 +127,8 @@ class Result:
         s = self.stats
         return (f"<Result {span}; outputs {outs or '-'}; {len(self.state_names)} state(s); solver {self.solver}, "
                 f"{s.get('steps', 0)} steps, {len(self.events)} events"
-                + (f", {len(s['warnings'])} warning(s)" if s.get("warnings") else "") + ">")
+                + (f", {len(s['warnings'])} warning(s)" if s.get("warnings") else "")
+                + (f", {len(self.monitors)} monitor finding(s)" if self.monitors else "") + ">")
 
     def _repr_html_(self) -> str:
         """The notebook view: outputs (unit, final, min, max; the first :data:`HTML_ROWS`), states,
@@ -137,7 +140,8 @@ class Result:
         if len(self.outputs) > HTML_ROWS:
             rows += f"<tr><td colspan=5>… {len(self.outputs) - HTML_ROWS} more outputs</td></tr>"
         span = f"t = 0 … {_seconds(self.t[-1])}, {len(self.t)} samples" if len(self.t) else "no samples"
-        notes = "".join(f"<li>{escape(w)}</li>" for w in self.stats.get("warnings", []))
+        notes = "".join(f"<li>{escape(w)}</li>" for w in self.stats.get("warnings", []) + [monitor_line(m) for m in
+                                                                                            self.monitors])
         return (f"<div><b>multipole Result</b>: {escape(span)}"
                 "<table><tr><th>output</th><th>unit</th><th>final</th><th>min</th><th>max</th></tr>"
                 f"{rows}</table>"
@@ -563,11 +567,12 @@ def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, 
     method, reason = plan
     schedule, sides = _time_switches(model, x, t_end)
     run = integrator.integrate(model, method, t_grid, x, schedule, sides, t_end, rtol, atol, max_step, bar)
-    _near_dead_centres(model, t_grid, run.states)
+    fired = monitor_findings(model, run.events, x, t_end)
     bar.close()
     outs = sample_outputs(model, t_grid, run.states)
     run_time = time.perf_counter() - start
-    events = [(float(t), model.switch_text[k]) for t, k in run.events]
+    watched = {k for k, *_rest in getattr(model, "monitors", [])}       # listed in Result.monitors
+    events = [(float(t), model.switch_text[k]) for t, k in run.events if k not in watched]
     cached = bool(getattr(model, "cached", False))
     stats = solver_stats(run.counters, backend=integrator.name, events=len(events), run_time=run_time,
                          wall_time=run_time, translate_time=getattr(model, "translate_time", None),
@@ -575,7 +580,7 @@ def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, 
                          model_cached=cached)
     outputs = {name: outs[:, k].copy() for k, name in enumerate(model.output_names)}
     units = dict(zip(model.output_names, getattr(model, "output_units", [])))
-    return Result(t_grid, outputs, run.states, list(model.state_names), method, reason, stats, events, units)
+    return Result(t_grid, outputs, run.states, list(model.state_names), method, reason, stats, events, units, fired)
 
 
 def _time_switches(model, x, t_end) -> tuple[list, np.ndarray]:
@@ -684,9 +689,6 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
                 return inner
     where = where or function or "the model"
     when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
-    at_dead_centre = dead_centre(model, t, frames[0][0].f_locals.get("x"), where) if isinstance(t, (int, float)) else None
-    if at_dead_centre is not None:
-        return at_dead_centre
     if isinstance(exc, NewtonError):
         return _failed(model, "newton_failed", f"no solution{when} in {where} ({exc.message})", exc.fix, element)
     reason = next((r for cls, r in _REASONS.items() if isinstance(exc, cls)), None)
@@ -739,7 +741,7 @@ class ScipyIntegrator:
         cls = SOLVERS[solver]
         n = len(x)
         model.reset_stats()
-        guarded = bool(getattr(model, "guard_text", None))
+        stops = _stop_monitors(model)
         states = np.empty((len(t_grid), n))
         k_out = 0
         stats = {"steps": 0, "nfev": 0, "njev": 0, "nlu": 0, "segments": 0, "dense_calls": 0}
@@ -787,10 +789,8 @@ class ScipyIntegrator:
                     elif not np.all(np.isfinite(rhs(ode.t, ode.y))):
                         cause, element = locate_non_finite(model, ode.t, ode.y)
                         msg += f"; infinite or NaN: {cause}"
-                    raise step_failed(model, f"{solver} failed at t = {ode.t:.6g} s: {msg}", element, (ode.t, ode.y))
+                    raise step_failed(model, f"{solver} failed at t = {ode.t:.6g} s: {msg}", element)
                 stats["steps"] += 1
-                if guarded and dead_centres(model, ode.t, ode.y, DEAD_STOP):
-                    raise dead_centre(model, ode.t, ode.y, "the integration reached it")
                 dense = _Dense(ode, stats)
                 t_stop = ode.t
                 if watch.any():
@@ -813,6 +813,8 @@ class ScipyIntegrator:
             x = dense(t)
             forced = {k_ev: -g_sign[k_ev]}
             events.append((t, k_ev))
+            if stops[k_ev] and g_sign[k_ev] > 0:        # a stop monitor crossed downwards: the run ends here
+                break
             _check_chattering(events, model.switch_text)
         stats.update({k: v for k, v in model.stats.items()})
         dense_calls = stats.pop("dense_calls")
@@ -845,60 +847,51 @@ def jacobian_for(model, solver: str):
     return sparse if sparse is not None and solver in SPARSE_JACOBIAN_SOLVERS else dense
 
 
-def step_failed(model, message: str, element: str | None = None, state=None) -> SimulationError:
-    """The error of an integrator that cannot take a step (every backend; exit code 3); at a
-    closure's dead centre (``state = (t, x)`` where the step failed) the ``dead_centre`` error."""
-    found = dead_centre(model, *state, message) if state is not None else None
-    return found or _failed(model, "step_failed", message, "try solver auto or Radau, or tighter tolerances", element)
+def step_failed(model, message: str, element: str | None = None) -> SimulationError:
+    """The error of an integrator that cannot take a step (every backend; exit code 3)."""
+    return _failed(model, "step_failed", message, "try solver auto or Radau, or tighter tolerances", element)
 
 
-#: a run stops at a closure's dead centre once a guard is below this fraction of its threshold (the
-#: numpy backend checks every step: beyond, the rates grow like 1/guard and the steps shrink to nothing)
-DEAD_STOP = 1e-3
+def _stop_monitors(model) -> np.ndarray:
+    """Per switching function of ``model``: it is a monitor with ``stop`` (the integrators end the run
+    where it crosses from >= 0 to < 0)."""
+    stops = np.zeros(model.n_switches, dtype=bool)
+    for k, _el, _code, _text, stop, _fix in getattr(model, "monitors", []):
+        stops[k] = stop
+    return stops
 
 
-def dead_centres(model, t: float, x, scale: float = 1.0) -> list:
-    """``(element, text, value, threshold)`` of every closure guard of ``model`` (see
-    :class:`multipole.network.Closure`) whose magnitude is below ``scale`` times its threshold at (t, x)."""
-    fun, texts = getattr(model, "guards", None), getattr(model, "guard_text", [])
-    if fun is None or not texts or x is None:
+def monitor_findings(model, events, x0, t_end) -> list:
+    """The monitors that fired in a run (every backend): ``[(t [s], element, code, text), ...]`` for
+    each crossing of a monitor's expression from >= 0 to < 0 among the run's ``events``
+    ``[(t, switching function index), ...]``.  A monitor's events alternate between the two
+    directions from its side at the start (as the integrators hold it: its sign, or where it is 0, the
+    sign just after).  A stop monitor that fired (the integrators end the run there) raises its
+    :class:`SimulationError` with the monitor's code, the time and the element."""
+    monitors = {k: rest for k, *rest in getattr(model, "monitors", [])}
+    if not monitors or not events:
         return []
-    try:
-        with np.errstate(all="ignore"):
-            values = np.asarray(fun(float(t), np.asarray(x, dtype=float)), dtype=float)
-    except (ArithmeticError, ValueError, TypeError):
-        return []
-    return [(el, text, float(v), th) for (el, text, th), v in zip(texts, values) if abs(v) < scale * th]
+    sides = _sides(model, 0.0, x0, np.sign(np.array(model.switches(0.0, x0), dtype=float)), t_end)
+    found = []
+    for t, k in events:
+        if k not in monitors:
+            continue
+        falling = sides[k] > 0
+        sides[k] = -sides[k]
+        if not falling:
+            continue
+        el, code, text, stop, fix = monitors[k]
+        if stop:
+            raise _failed(model, code, f"{el} at t = {float(t):.6g} s: {text}", fix or "see the element's "
+                          "documentation for the range it works in", el.split(".", 1)[0])
+        found.append((float(t), el, code, text))
+    return found
 
 
-def dead_centre(model, t: float, x, cause: str = "") -> SimulationError | None:
-    """The ``dead_centre`` error if a closure of ``model`` is at its dead centre at (t, x) (the run
-    failed there: ``cause`` says how), else None."""
-    found = dead_centres(model, t, x)
-    if not found:
-        return None
-    el, text, value, th = min(found, key=lambda f: abs(f[2]) / f[3])
-    return _failed(model, "dead_centre", f"{el} reached its dead centre at t = {float(t):.6g} s ({text} = {value:.3g}, "
-                   f"below {th:g}): its closure cannot be solved beyond it, so the run stops"
-                   + (f" ({cause.split(': ', 1)[-1]})" if cause else ""),
-                   f"the motion prescribed upstream of {el} pushes it through a position it cannot pass: drive "
-                   "the mechanism only over the range it can assemble (see the transfer function), or "
-                   f"drive it at {el} itself", el)
-
-
-def _near_dead_centres(model, t_grid, states) -> None:
-    """Warn (collected into ``Result.stats['warnings']``) about every closure that comes nearer its
-    dead centre than its guard's threshold at an output time of a run that went on."""
-    fun = getattr(model, "guards", None)
-    if fun is None or not getattr(model, "guard_text", []):
-        return
-    seen = set()
-    for t, x in zip(t_grid, states):
-        for el, text, value, th in dead_centres(model, t, x):
-            if el not in seen:
-                seen.add(el)
-                warnings.warn(f"{el} comes near its dead centre at t = {float(t):.6g} s ({text} = {value:.3g}, "
-                              f"below {th:g}): forces and rates there grow like 1/{text}", MultipoleWarning)
+def monitor_line(finding) -> str:
+    """One line for a monitor that fired: ``t = 1.234 s: <element>: <text> [<code>]``."""
+    t, el, code, text = finding
+    return f"t = {t:.6g} s: {el}: {text} [{code}]"
 
 
 def check_finite(t_grid, states, outs, state_names, output_names, model=None) -> None:

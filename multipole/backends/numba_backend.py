@@ -58,7 +58,7 @@ import sympy as sp
 from sympy.printing.precedence import PRECEDENCE
 
 from .. import cache, codegen
-from ..simulate import MAX_EVENTS, Run, SimulationError, chattering, dead_centre, step_failed
+from ..simulate import MAX_EVENTS, Run, SimulationError, chattering, step_failed
 from . import Backend, Refused
 from . import numba_kernels as K
 
@@ -296,7 +296,7 @@ def generate(eq, outputs) -> tuple[str, list]:
     # the integrator's functions hold every switch on its side for a segment (as the numpy backend);
     # not where a Newton loop switches, since a loop's residual function is printed once for all uses
     loops_switch = any(codegen.switching_functions(e) for u in w.units if u.kind != "assign" for e in u.exprs)
-    held = {g: k for k, g in enumerate(sw)} if sw and not loops_switch else None
+    held = codegen.modal_switches(w, sw) if sw and not loops_switch else None
     w.locked(held)
     ders = [N[d] if d in N else P(d) for d in eq.derivatives]
     body = w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives, ders,
@@ -314,7 +314,7 @@ def generate(eq, outputs) -> tuple[str, list]:
             f"# kernels {_kernel_digest()}", "import math", "", "import numpy as np",
             "from numba import carray, cfunc, njit, types", "",
             "from multipole.backends import numba_kernels as _k", "", f"N_WORK = {w.work}",
-            f"N_SWITCHES = {len(sw)}"] + codegen.time_switch_lines(w, sw) + [""]
+            f"N_SWITCHES = {len(sw)}"] + codegen.time_switch_lines(w, sw) + codegen.monitor_lines(w, sw) + [""]
     return "\n".join(head + w.blocks_src + body) + "\n", [str(s) for s in sw]
 
 
@@ -369,7 +369,8 @@ def _structure(eq, outputs) -> tuple:
     blocks = tuple((b.kind, tuple(b.variables), tuple(b.solution or ()), tuple(b.residuals), frozen(b.matrix),
                     frozen(b.rhs)) for b in eq.blocks)
     return (eq.name, tuple(s.symbol for s in eq.states), tuple(eq.derivatives), tuple(eq.inputs.items()),
-            tuple(eq.params.items()), blocks, tuple(outputs), tuple(eq.output(o) for o in outputs))
+            tuple(eq.params.items()), blocks, tuple(outputs), tuple(eq.output(o) for o in outputs),
+            tuple((sp.sympify(e), m.code, m.text, m.stop, m.fix, owner) for e, m, owner in eq.monitors))
 
 
 def translate(eq, outputs) -> tuple[str, list]:
@@ -466,6 +467,13 @@ class _Work:
         self.sched_k = np.zeros(0, dtype=np.int64)
         self.sched_side = np.zeros(0)
         self.t_side = np.ones(n_switches)
+        self.stop = np.zeros(n_switches, dtype=np.int64)          # 1: a stop monitor (see :meth:`monitors`)
+
+    def monitors(self, monitors) -> None:
+        """Mark the switching functions of the monitors with ``stop`` (the model's ``monitors``): the
+        compiled loop ends the run where one crosses from >= 0 to < 0."""
+        for k, _el, _code, _text, stop, _fix in monitors:
+            self.stop[k] = int(stop)
 
     def schedule(self, time_only, crossings, sides) -> None:
         """The crossings ``[(t, k, side after), ...]`` of the switching functions of time alone and
@@ -479,7 +487,7 @@ class _Work:
     def args(self, max_steps):
         return (self.fs, self.iw, self.x, self.f, self.grid, self.X, self.g_sign, self.ev_t, self.ev_k, self.Q,
                 self.y_old, self.J, self.LUr, self.pr, self.LUc, self.pc, self.w, self.time_only, self.sched_t,
-                self.sched_k, self.sched_side, self.t_side, max_steps)
+                self.sched_k, self.sched_side, self.t_side, self.stop, max_steps)
 
 
 def _cfuncs(module) -> tuple:
@@ -513,6 +521,7 @@ class NumbaModel:
         self.n_switches, self.switch_text = module.N_SWITCHES, switch_text
         self.switch_time_only = np.asarray(module.SWITCH_TIME_ONLY, dtype=bool)
         self.switch_rate, self.switch_roots = module.SWITCH_RATE, module.SWITCH_ROOTS
+        self.monitors = list(module.MONITORS)
         self.translate_time, self.compile_time, self.cached = translate_time, compile_time, cached
         self.w0 = np.zeros(module.N_WORK)       # work array of the Jacobian at the start
         if self.n_switches:          # hold the switches on the side they are on at the start
@@ -569,6 +578,7 @@ class NumbaIntegrator:
         rtol = max(rtol, 100 * np.finfo(float).eps)
         work = _Work(n, model.n_switches, module.N_WORK, t_grid, x0, t_end, rtol, atol, max_step)
         work.schedule(model.switch_time_only, schedule, sides)
+        work.monitors(model.monitors)
         funcs = _cfuncs(module) + (method == "Radau",)
         chunk = PROGRESS_CHUNK if bar.enabled else np.iinfo(np.int64).max
         if n:
@@ -577,8 +587,7 @@ class NumbaIntegrator:
                     K.integrate(*funcs, *work.args(chunk))
                     bar.update(work.fs[K.F_T])
             except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-                raise step_failed(model, f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}", None,
-                                  (work.fs[K.F_T], work.x)) from None
+                raise step_failed(model, f"integration failed at t = {work.fs[K.F_T]:.6g} s: {exc}") from None
             status, t = int(work.iw[K.I_STATUS]), float(work.fs[K.F_T])
             if status == K.TOO_MANY_EVENTS:
                 last = int(work.iw[K.I_NEV]) - 1
@@ -588,9 +597,9 @@ class NumbaIntegrator:
                 if work.w[2]:
                     msg += f" (Newton's method failed {int(work.w[2])} times in an algebraic loop)"
                 if status == K.NOT_FINITE:
-                    raise dead_centre(model, t, work.x, msg) or SimulationError(
-                        "not_finite", msg, "check parameters (zero inertia? negative stiffness?) and the check report")
-                raise step_failed(model, msg, None, (t, work.x))
+                    raise SimulationError("not_finite", msg, "check parameters (zero inertia? negative stiffness?) "
+                                          "and the check report")
+                raise step_failed(model, msg)
         model.w_run = work.w
         iw = work.iw
         counters = {"steps": int(iw[K.I_STEPS]), "rejected": int(iw[K.I_REJECTED]), "nfev": int(iw[K.I_NFEV]),
@@ -624,7 +633,6 @@ class NumbaBackend(Backend):
         cached = _compile(module, len(equations.states), len(switch_text))
         model = NumbaModel(equations, outputs, module, switch_text, _initial_state(equations), translate_time,
                            time.perf_counter() - start, cached)
-        model.guards, model.guard_text = codegen.guard_function(equations)      # read by the driver
         equations._numba_model = (tuple(outputs), model)
         return model
 

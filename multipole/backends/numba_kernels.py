@@ -51,7 +51,8 @@ N_IW = 17
 #: last is its end), as in :data:`multipole.simulate.PROBES`
 PROBES = 5
 # status codes
-RUNNING, FINISHED, STEP_TOO_SMALL, TOO_MANY_EVENTS, NOT_FINITE = 0, 1, -1, -2, -3
+#: MONITOR_STOP: a stop monitor crossed from >= 0 to < 0 (the run ends at that event, the last one)
+RUNNING, FINISHED, STEP_TOO_SMALL, TOO_MANY_EVENTS, NOT_FINITE, MONITOR_STOP = 0, 1, -1, -2, -3, -4
 DENSE_COLS = 4          # columns of the dense-output coefficient matrix Q
 
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
@@ -569,12 +570,14 @@ def _locate(switches, w, k, Q, y_old, t_old, h, a, b, g_a, tmp, g):
 
 @njit(cache=True)
 def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t, ev_k, Q,
-              y_old, J, LUr, pr, LUc, pc, w, time_only, sched_t, sched_k, sched_side, t_side, max_steps):
+              y_old, J, LUr, pr, LUc, pc, w, time_only, sched_t, sched_k, sched_side, t_side, stop, max_steps):
     """Advance the run by at most ``max_steps`` accepted steps (see the module docstring).
 
     ``implicit`` selects :func:`radau_step` (else :func:`dp_step`).  Switching functions with
     ``time_only[k]`` are not watched: their crossings ``sched_t`` (of function ``sched_k``, which
-    then takes side ``sched_side``) end segments; ``t_side`` holds their current sides.
+    then takes side ``sched_side``) end segments; ``t_side`` holds their current sides.  A crossing
+    of function k from >= 0 to < 0 with ``stop[k]`` (a stop monitor) ends the run there
+    (MONITOR_STOP, ``x`` and ``fs[F_T]`` at the event).
     ``iw[I_STATUS]`` is set to FINISHED when every grid point is filled, or to a negative code."""
     n = x.size
     n_sw = g_sign.size
@@ -689,6 +692,9 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
             ev_t[n_ev] = t_stop
             ev_k[n_ev] = event
             iw[I_NEV] += 1
+            if stop[event] and g_sign[event] > 0.0:
+                iw[I_STATUS] = MONITOR_STOP
+                return
             iw[I_FORCED] = event
             iw[I_FORCED_SIGN] = -int(g_sign[event])
             iw[I_FRESH] = 1

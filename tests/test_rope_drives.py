@@ -244,3 +244,62 @@ def test_pulley_block_efficiency_falls_linearly_with_mu():
     # the efficiency falls by 0.114 over the range, and the line starts at 1 within 3e-3
     assert np.max(np.abs(etas - (slope * mus + icept))) < 1.2e-3
     assert icept == pytest.approx(1.0, abs=3e-3)
+
+
+# -- the tilting-mast cable crane (Ebert 8.1) ------------------------------------------------------
+
+CRANE_SPANS = ["c1", "c2", "c3", "l1", "l2", "l3", "l4", "l5", "l6", "a1", "a2", "a3"]
+CRANE_ROLLS = ["MC1", "MC2", "ML", "MR", "C1", "C2", "H", "MF", "MA"]
+
+
+def test_crane_has_the_same_states_with_ten_times_longer_spans():
+    """A rope's size does not grow with its length: the drum hands the wound length on as a position
+    and each free rope is one span (one stretch state), so 10x longer spans (L = 500 m, the valley
+    ropes 300 m) give the same 34 states: 12 stretches, 9 rolls x 2, 2 drum angles, carriage, hook."""
+    short = pipeline.check(load(BELTS / "crane.yaml"))
+    long = pipeline.check(load(BELTS / "crane.yaml", {"L": 500.0, "l_s": 300.0}))
+    assert short.ok and long.ok
+    assert long.assembled.state_names == short.assembled.state_names
+    assert len(short.assembled.state_names) == 12 + 2 * 9 + 2 + 2
+    assert {f"{s}.c.q" for s in CRANE_SPANS} <= set(short.assembled.state_names)
+
+
+def test_crane_energy_balance_over_the_lift():
+    """Lift (0 .. 12.5 s: D1 winds 9 m of rope in with ramps of 2 s, the hook rises 4.5 m): the work of the two drum drives
+    equals the change of kinetic energy (carriage, hook with load, rolls, drums), potential energy
+    of the hook and strain energy EA delta^2/(2 l_x) of the 12 spans, plus the damper losses and the
+    strain energy of the rope material entering a span unstrained from a roll, F_k^2/(2 EA) l_x'
+    (docs/belts.md).  Quadrature: trapezoids on the output grid; the drum torques jump at the ramp
+    corners (drum inertia), which makes the trapezoid error first order in dt: the balance is
+    extrapolated from dt and 2 dt (Richardson), and must close to 2e-6 of the work (measured 6e-8;
+    without the convected strain term it misses by 2e-4)."""
+    outs = ["carriage.v", "hook.v", "drive1.p.e", "drive1.p.f", "drive2.p.e", "drive2.p.f", "D1.omega", "D2.omega"]
+    outs += [f"{r}.omega" for r in CRANE_ROLLS]
+    outs += [f"{s}.{q}" for s in CRANE_SPANS for q in ("F", "stretch", "free", "rate", "e1.l.f", "e2.l.f")]
+    res = pipeline.run(load(BELTS / "crane.yaml"), progress=False, outputs=outs, t_end=12.5, dt_out=0.01, rtol=1e-8)
+    o, t = res.outputs, res.t
+    EA, m_move, m_hook, J_m, J_d = 1.2e7, 1200.0, 1050.0, 0.02, 20.0
+
+    def integral(f, step):
+        return np.concatenate([[0.0], np.cumsum(0.5 * (f[step::step] + f[:-step:step]) * np.diff(t[::step]))])
+
+    Fk = {s: EA * np.maximum(o[f"{s}.stretch"], 0.0) / o[f"{s}.free"] for s in CRANE_SPANS}
+    kinetic = (0.5 * m_move * o["carriage.v"] ** 2 + 0.5 * m_hook * o["hook.v"] ** 2
+               + sum(0.5 * J_m * o[f"{r}.omega"] ** 2 for r in CRANE_ROLLS)
+               + 0.5 * J_d * (o["D1.omega"] ** 2 + o["D2.omega"] ** 2))
+    strain = sum(Fk[s] ** 2 * o[f"{s}.free"] / (2 * EA) for s in CRANE_SPANS)
+    work_in = -(o["drive1.p.e"] * o["drive1.p.f"] + o["drive2.p.e"] * o["drive2.p.f"])   # into the drums
+    loss = sum((o[f"{s}.F"] - Fk[s]) * o[f"{s}.rate"] for s in CRANE_SPANS)
+    convected = sum(Fk[s] ** 2 / (2 * EA) * (o[f"{s}.e1.l.f"] + o[f"{s}.e2.l.f"]) for s in CRANE_SPANS)
+    assert np.all(loss >= -1e-9 * np.abs(work_in).max())
+    balance = {}
+    for step in (1, 2):
+        height = integral(o["hook.v"], step)
+        energy = (kinetic + strain)[::step] + m_hook * G * height
+        balance[step] = integral(work_in - loss - convected, step) - (energy - energy[0])
+        without = integral(work_in - loss, step) - (energy - energy[0])
+    work = integral(work_in, 1)[-1]
+    assert work == pytest.approx(m_hook * G * 4.5, rel=5e-3)            # the hook rose 4.5 m
+    extrapolated = 2 * balance[1][-1] - balance[2][-1]
+    assert abs(extrapolated) < 2e-6 * work
+    assert abs(without[-1]) > 1e-4 * work

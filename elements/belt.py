@@ -83,8 +83,12 @@ def band(EA, cd, l, l0, dir, gamma):
                    fixed=("e1.l", "e2.l", "p1", "p2"))
 
 
-def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap) -> Network:
-    """A circular roll with ``sides`` band ports (2: roll, 1: drum): no-slip winding, inertia J."""
+def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap, contact=None, reads=None) -> Network:
+    """A roll with ``sides`` band ports (2: roll, 1: drum): no-slip winding, inertia J.
+
+    ``contact(k)``: (lever arm [m], wound length [m]) at band port k as expressions of the local
+    names (the roll angle ``phi``, ``reads``); default: the circle of radius ``r`` (a curve roll,
+    ``elements/belt_contour.py``, gives its contour's and leaves ``r`` None)."""
     if w not in (1, -1):
         raise ModelError("bad_winding", f"{kind}: w = {w!r} must be +1 or -1",
                          "+1: a positive rotation pays band out at e1 (and winds it in at e2)")
@@ -105,13 +109,15 @@ def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap) -> Netw
     ports, positions, fixed = {"drive": "W.drive"}, {}, []
     for k in range(1, sides + 1):
         sign = ws if k == 1 else -ws
-        children[f"T{k}"] = TF(sign * _S("r"), "translational", "rotational")
+        lever, wound = contact(k) if contact else (_S("r"), _S("r") * (phi - _S("phi0")))
+        children[f"T{k}"] = TF(sign * lever, "translational", "rotational")
         children[f"g{k}"] = Se(0, "rotational")
         connections.append([f"T{k}.b", f"W.t{k}"])
         ports.update({f"e{k}.l": f"T{k}.a", f"e{k}.gamma": f"g{k}.p"})
-        positions[f"e{k}.l"] = sign * _S("r") * (phi - _S("phi0"))
+        positions[f"e{k}.l"] = sign * wound
         fixed.append(f"e{k}.gamma")
-    params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": ws, "mu": mu, "r_pin": r_pin}
+    params = ({} if r is None else {"r": r}) | {"J": J, "phi0": phi0, "omega0": omega0, "w": ws, "mu": mu,
+                                                "r_pin": r_pin}
     if sides == 2:
         params["wrap"] = wrap
     q = {"phi": Quantity(lambda V: V.x("tap.q")), "omega": Quantity(lambda V: V.f("W.drive")),
@@ -121,7 +127,8 @@ def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap) -> Netw
         q["F2"] = Quantity(lambda V: V.e("T2.a"))
     signals = {"phi": "tap.q"} | {f"F{k}": f"T{k}.a.e" for k in range(1, sides + 1)}
     return Network(kind, children, connections, ports, params, q, signals=signals,
-                   bundles={f"e{k}": "band" for k in range(1, sides + 1)}, positions=positions, fixed=fixed)
+                   bundles={f"e{k}": "band" for k in range(1, sides + 1)}, positions=positions, fixed=fixed,
+                   reads=reads)
 
 
 _ROLL_PARAMS = [Param("r", "m", "roll radius (to the band's neutral layer)", 0.05, positive=True),

@@ -52,7 +52,8 @@ class Param:
 
     ``kind``: ``number`` (constant, may use scene parameters), ``time`` (expression of ``t``),
     ``law`` (expression of the law variable ``law_var`` and ``t``), ``choice`` (one of
-    ``choices``), ``bool``, ``names`` (list of port names), ``numbers`` (list of numbers).
+    ``choices``), ``bool``, ``names`` (list of port names), ``numbers`` (list of numbers),
+    ``file`` (a data file named relative to the netlist file; the builder gets the path).
     """
 
     name: str

@@ -508,6 +508,11 @@ class _Builder:
             expr = self.expr(value, local, what, line, element)
             self.check_value(p, expr, line, element)
             return expr
+        if p.kind == "file":              # a data file (a table) named relative to the netlist file
+            if not isinstance(value, str) or not value.strip() or "\0" in value:
+                raise self.err("bad_value", f"{what} must be a file name, a path relative to the netlist file",
+                               "e.g. contour: wheel1.csv", line, element)
+            return str(Path(self.file).parent / value)
         if p.kind == "choice":
             if value not in p.choices:
                 raise self.err("bad_value", f"{what} must be one of {', '.join(p.choices)}, got {value!r}",

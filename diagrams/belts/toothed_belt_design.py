@@ -1,0 +1,130 @@
+"""Pitch curves of the toothed belt with two non-circular wheels (Ebert 7.3.2) and its figure.
+
+    python diagrams/belts/toothed_belt_design.py          # writes the two tables and the figure
+
+Design (derivation in docs/belts.md, "Toothed belt with two non-circular wheels"): wheel 1 (small,
+driving) turns phi1, wheel 2 phi2; the prescribed ratio is i(phi1) = phi1'/phi2' = c (1 + e cos 2 phi1)
+with e = 0.2 (i_max/i_min = 1.5) and c = 2/sqrt(1 - e^2) (wheel 2 turns once per two turns of
+wheel 1: mean ratio 2:1).  Both pitch curves are centrally symmetric, so the upper and the lower
+span see the same lever arms and one rolling condition serves both spans:
+
+    p1(pi/2 - phi1)          = R1 (1 - e1 cos 2 phi1)         (wheel 1, two lobes)
+    p2(pi/2 - phi2(phi1))    = i(phi1) p1(pi/2 - phi1)       (wheel 2, four lobes)
+    phi2(phi1)               = (1/2) atan2(q sin phi1, cos phi1) unwrapped, q = sqrt((1 - e)/(1 + e))
+
+p are support functions (lever arms), turned into polar tables by the contact point p e + p' e'.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parents[1]))
+
+from elements.belt_contour import Contour, polar_from_support, read_table, write_table  # noqa: E402
+
+A = 0.8                    #: centre distance [m]
+E = 0.2                    #: ratio fluctuation: i_max/i_min = (1 + E)/(1 - E) = 1.5
+C = 2.0 / math.sqrt(1 - E * E)
+Q = math.sqrt((1 - E) / (1 + E))
+R2 = 0.16                  #: mean lever arm of wheel 2 [m]
+E2 = 0.04                  #: lobe depth of wheel 2 (wheel 1 takes the rest of the ratio's swing)
+N = 1440                   #: table rows
+
+
+def ratio(phi1):
+    """Prescribed ratio i = phi1'/phi2'."""
+    return C * (1 + E * np.cos(2 * phi1))
+
+
+def phi2_of(phi1):
+    """Wheel 2's angle [rad] for wheel 1's (closed-form quadrature of dphi2 = dphi1/i)."""
+    phi1 = np.asarray(phi1, dtype=float)
+    base = np.arctan2(Q * np.sin(phi1), np.cos(phi1))
+    return 0.5 * (base + 2 * math.pi * np.round((phi1 - base) / (2 * math.pi)))
+
+
+def wheel2_support(nu):
+    """p2(nu) [m] and dp2/dnu: R2 (1 + E2 cos 4 nu), four gentle lobes."""
+    return R2 * (1 + E2 * np.cos(4 * nu)), -4 * R2 * E2 * np.sin(4 * nu)
+
+
+def wheel1_support(nu):
+    """p1(nu) [m] and dp1/dnu from the rolling condition p1(pi/2 - phi1) = p2(pi/2 - phi2(phi1))/i(phi1)."""
+    phi1 = math.pi / 2 - np.asarray(nu, dtype=float)
+    i = ratio(phi1)
+    p2, dp2 = wheel2_support(math.pi / 2 - phi2_of(phi1))
+    di = -2 * C * E * np.sin(2 * phi1)
+    dp1_dphi1 = (-dp2 / i * i - p2 * di) / i ** 2          # dnu2/dphi1 = -1/i
+    return p2 / i, -dp1_dphi1
+
+
+def tables(out=HERE):
+    """Write toothed_belt_wheel1.csv and toothed_belt_wheel2.csv (polar, roll frame)."""
+    nu = np.linspace(0.0, 2 * math.pi, N, endpoint=False)
+    for name, (n_, p, dp) in (("wheel1", (nu, *wheel1_support(nu))), ("wheel2", (nu, *wheel2_support(nu)))):
+        th, r = polar_from_support(p, dp, n_)
+        order = np.argsort(th)
+        th, r = th[order], r[order]
+        keep = np.concatenate([[True], np.diff(th) > 1e-12])
+        write_table(out / f"toothed_belt_{name}.csv", th[keep], r[keep],
+                    f"toothed belt (Ebert 7.3.2) {name} pitch curve, made by diagrams/belts/toothed_belt_design.py")
+
+
+def open_belt_length(c1: Contour, c2: Contour, phi1, phi2):
+    """Length [m] of the real open belt around the two pitch curves (centres (0, 0) and (A, 0)):
+    the two common outer tangents (normal angles alpha near +-pi/2, solved by Newton) plus the arcs."""
+    def tangent(alpha):              # the line n(alpha).x = p1 = A cos(alpha) + p2 touches both
+        for _ in range(50):
+            f = c1.support(alpha - phi1) - c2.support(alpha - phi2) - A * math.cos(alpha)
+            d = slope(c1, alpha - phi1) - slope(c2, alpha - phi2) + A * math.sin(alpha)
+            alpha -= f / d
+            if abs(f) < 1e-15:
+                break
+        return alpha
+    up, down = tangent(math.pi / 2), tangent(-math.pi / 2)
+    # contact points along the tangent t = (-sin, cos): p1' on wheel 1, -A sin(alpha) + p2' on wheel 2
+    seg = lambda al: abs(-A * math.sin(al) + slope(c2, al - phi2) - slope(c1, al - phi1))
+    arc1 = c1.arc(down + 2 * math.pi - phi1) - c1.arc(up - phi1)          # around the left
+    arc2 = c2.arc(up - phi2) - c2.arc(down - phi2)                        # around the right
+    return float(arc1 + arc2 + seg(up) + seg(down))
+
+
+def slope(c: Contour, nu):
+    """dp/dnu [m] of a contour's support function: r sin(theta - nu) at the contact point."""
+    th = c.contact(nu)
+    return float(c.radius(th) * np.sin(th - nu))
+
+
+def figure(path=HERE.parents[1] / "docs" / "figures" / "belts_toothed_belt.png", result=None):
+    from multipole.plotting import new_figure
+    c1, c2 = read_table(HERE / "toothed_belt_wheel1.csv"), read_table(HERE / "toothed_belt_wheel2.csv")
+    fig, (ax1, ax2) = new_figure(1, 2, figsize=(11, 4.2))
+    th = np.linspace(0, 2 * math.pi, 721)
+    for c, x0, label in ((c1, 0.0, "wheel 1"), (c2, A, "wheel 2")):
+        r = c.radius(th)
+        ax1.plot(x0 + r * np.cos(th), r * np.sin(th), label=label)
+        ax1.plot([x0], [0], "k+")
+    ax1.set_aspect("equal")
+    ax1.set_xlabel("x [m]")
+    ax1.set_ylabel("y [m]")
+    ax1.set_title("pitch curves at phi = 0 (centre distance 0.8 m)")
+    ax1.legend(loc="upper center")
+    phi1 = np.linspace(0, 4 * math.pi, 401)
+    ax2.plot(np.degrees(phi1), ratio(phi1), "k-", lw=3, alpha=0.3, label="prescribed i(phi1)")
+    if result is not None:
+        ax2.plot(np.degrees(result["phi1"]), result["i"], "C3--", label="simulated omega1/omega2")
+    ax2.set_xlabel("drive angle phi1 [deg]")
+    ax2.set_ylabel("ratio i = omega1/omega2 [-]")
+    ax2.set_title("ratio over one turn of wheel 2")
+    ax2.legend()
+    fig.savefig(path, dpi=110)
+
+
+if __name__ == "__main__":
+    tables()
+    print("tables written")

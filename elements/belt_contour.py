@@ -1,0 +1,451 @@
+"""Rolls with a convex curve contour after Ebert (2015, 4.4.5): the contour, the curve roll, the curve drum.
+
+The contour is a closed convex curve around the roll's axis, given in polar form ``r(theta)`` in the
+roll frame (theta [rad], r [m]), from a table (CSV, :func:`read_table`) or a Python callable, and
+turned into a periodic C2 cubic spline (:class:`Contour`).  Convexity is checked when it is made:
+the curvature ``kappa = (r^2 + 2 r'^2 - r r'') / (r^2 + r'^2)^(3/2)`` must be > 0 everywhere, else
+``contour_not_convex`` names the angle and the curvature where it fails.
+
+Geometry a band sees (all in the roll frame, angles unwrapped):
+
+* ``nu(theta) = theta - atan2(r', r)``: the angle of the outward normal at the contour point of
+  polar angle theta; strictly increasing for a convex contour, so every normal direction ``nu``
+  has exactly one contact point ``theta(nu)`` (:meth:`Contour.contact`);
+* the support function ``p(nu) = r(theta) cos(theta - nu)``: the distance from the axis to the
+  tangent line of normal ``nu``, i.e. the lever arm of a band leaving along that tangent
+  (:meth:`Contour.support`);
+* the arc length ``S(nu)`` from the contact point of ``nu = 0`` (``dS/dnu = p + p''``, the radius of
+  curvature; ``S(nu + 2 pi) = S(nu) + perimeter``) (:meth:`Contour.arc`).
+
+A band whose span has the inclination gamma leaves a roll turned by phi at the contact point whose
+normal has the global angle ``gamma + side*pi/2`` (``side`` = +1: the roll lies to the right of the
+span seen from P1 to P2), i.e. ``nu = gamma + side*pi/2 - phi`` in the roll frame.  The band
+material that crossed the contact point since t = 0 is ``w*(S(nu0) - S(nu))`` (the wound length,
+Ebert 4.116/4.118 with erratum E4's single winding sense ``w``), and the rate at which the span's
+free length grows is ``w*p(nu)*omega``: the material rate plus the contact point's motion along the
+span.  The roll is therefore a transformer of ratio ``w*p(nu)`` (lossless: the torque is
+``w*p*F``) whose position is the wound length; for a circle both reduce to ``band_roll``.
+
+Generated code cannot call the spline, so the elements use the trigonometric series of ``p``
+(:meth:`Contour.series`): ``p = a0 + sum a_k cos(k nu) + b_k sin(k nu)`` with as many harmonics as
+make ``p`` and ``S`` (whose series follows from ``p``'s: ``S = a0 nu + sum a_k (1/k - k) sin(k nu)
++ b_k (k - 1/k)(cos(k nu) - 1)``) agree with the spline's to ``tol`` [m]; smooth in nu, so a
+revolution costs no events.  Units: SI (m, rad).  Reference: ``docs/belts.md``.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+from scipy.interpolate import CubicSpline
+
+from multipole import ModelError, Param, Quantity, element
+
+from .belt import _BAND, _ROLL_QTY, _roll
+
+TWO_PI = 2.0 * math.pi
+#: largest contour table accepted [bytes] and its most rows
+MAX_TABLE_BYTES, MAX_ROWS = 1 << 20, 20000
+#: harmonics the elements' series may use at most
+MAX_HARMONICS = 400
+
+
+def _err(code: str, message: str, fix: str) -> ModelError:
+    return ModelError(code, message, fix)
+
+
+@dataclass
+class Contour:
+    """A convex closed contour r(theta) [m] in the roll frame, a periodic C2 cubic spline.
+
+    ``theta`` [rad]: strictly increasing angles spanning less than one turn (``theta[-1] <
+    theta[0] + 2 pi``); the closing point ``theta[0] + 2 pi`` may be given as a last row with the
+    first radius.  ``r`` [m]: positive radii.  ``source``: a name for messages (the table file)."""
+
+    theta: np.ndarray
+    r: np.ndarray
+    source: str = "contour"
+    lines: list | None = None              #: table line of each point (for messages)
+    spline: CubicSpline = field(init=False, repr=False)
+
+    def __post_init__(self):
+        th, r = np.asarray(self.theta, dtype=float), np.asarray(self.r, dtype=float)
+        where = lambda k: f"{self.source}" + (f" line {self.lines[k]}" if self.lines else f" point {k + 1}")
+        if th.ndim != 1 or th.shape != r.shape or len(th) < 3:
+            raise _err("bad_contour", f"{self.source}: a contour needs at least 3 points (theta, r), got {len(th)}",
+                       "give the radius at three or more angles over one turn")
+        if not (np.all(np.isfinite(th)) and np.all(np.isfinite(r))):
+            k = int(np.flatnonzero(~(np.isfinite(th) & np.isfinite(r)))[0])
+            raise _err("bad_contour", f"{where(k)}: theta and r must be finite numbers", "fix the table")
+        steps = np.diff(th)
+        if np.any(steps <= 0):
+            k = int(np.flatnonzero(steps <= 0)[0]) + 1
+            raise _err("contour_not_increasing", f"{where(k)}: theta = {th[k]:.6g} rad does not increase "
+                       f"(previous {th[k - 1]:.6g} rad)", "list the points by increasing angle, one turn")
+        if np.any(r <= 0):
+            k = int(np.flatnonzero(r <= 0)[0])
+            raise _err("contour_negative_radius", f"{where(k)}: r = {r[k]:.6g} m at theta = {th[k]:.6g} rad "
+                       "must be > 0", "the contour must surround the roll's axis: every radius > 0")
+        span = th[-1] - th[0]
+        scale = max(1.0, abs(th[0]))
+        if span > TWO_PI + 1e-12 * scale:
+            raise _err("contour_not_periodic", f"{self.source}: the angles span {span:.9g} rad, more than one turn",
+                       "give one turn: theta[0] <= theta < theta[0] + 2*pi (a closing row at theta[0] + 2*pi)")
+        if span >= TWO_PI - 1e-12 * scale:          # the closing row: it must repeat the first radius
+            if abs(r[-1] - r[0]) > 1e-9 * max(r[0], 1e-300):
+                raise _err("contour_not_periodic", f"{where(len(r) - 1)}: the closing point at theta[0] + 2*pi has "
+                           f"r = {r[-1]:.9g} m, the first point r = {r[0]:.9g} m",
+                           "a closed contour ends where it starts: repeat the first radius, or leave the row out")
+            th, r = th[:-1], r[:-1]
+            if len(th) < 3:
+                raise _err("bad_contour", f"{self.source}: a contour needs at least 3 points over one turn",
+                           "give the radius at three or more angles")
+        self.theta, self.r = th, r
+        self.spline = CubicSpline(np.append(th, th[0] + TWO_PI), np.append(r, r[0]), bc_type="periodic")
+        self._check_convex()
+        self._tables()
+
+    # -- construction -------------------------------------------------------------------------
+    @classmethod
+    def circle(cls, radius: float, n: int = 8) -> "Contour":
+        """A circle of ``radius`` [m] about the axis (the spline of a constant is the constant)."""
+        if not radius > 0:
+            raise _err("contour_negative_radius", f"circle radius {radius!r} m must be > 0", "give a positive radius")
+        return cls(np.linspace(0.0, TWO_PI, n, endpoint=False), np.full(n, float(radius)), f"circle r = {radius:g} m")
+
+    @classmethod
+    def from_function(cls, fun, n: int = 720, source: str = "") -> "Contour":
+        """The contour through ``fun(theta)`` [m] at ``n`` equally spaced angles [rad] (a Python
+        callable taking a numpy array; never a string)."""
+        th = np.linspace(0.0, TWO_PI, n, endpoint=False)
+        return cls(th, np.asarray(fun(th), dtype=float) * np.ones_like(th), source or getattr(fun, "__name__", "function"))
+
+    @classmethod
+    def from_support(cls, p, dp, n: int = 720, source: str = "support function") -> "Contour":
+        """The contour whose support function is ``p(nu)`` [m] (``dp``: its derivative), sampled at
+        ``n`` normal angles: the contact point is ``p e(nu) + p' e'(nu)`` (a band-curve synthesis
+        result in polar form)."""
+        nu = np.linspace(0.0, TWO_PI, n, endpoint=False)
+        th, r = polar_from_support(p(nu), dp(nu), nu)
+        k = int(np.argmin(th))
+        return cls(np.roll(th, -k), np.roll(r, -k), source)
+
+    # -- evaluation ------------------------------------------------------------------------------
+    def radius(self, theta, nu: int = 0):
+        """r(theta) [m] or its ``nu``-th derivative [m/rad^nu], periodic."""
+        return self.spline(self._base(theta), nu)
+
+    def _base(self, theta):
+        return self.theta[0] + np.mod(np.asarray(theta, dtype=float) - self.theta[0], TWO_PI)
+
+    def curvature(self, theta):
+        """Curvature kappa [1/m] of the contour at the polar angle theta [rad] (> 0: convex)."""
+        r, d1, d2 = (self.radius(theta, k) for k in range(3))
+        return (r * r + 2 * d1 * d1 - r * d2) / (r * r + d1 * d1) ** 1.5
+
+    def normal_angle(self, theta):
+        """Angle nu [rad] of the outward normal at the polar angle theta, unwrapped (nu - theta is small)."""
+        return np.asarray(theta, dtype=float) - np.arctan2(self.radius(theta, 1), self.radius(theta))
+
+    def _check_convex(self):
+        """kappa > 0 on a grid of 16 points per spline interval (a cubic's curvature between them
+        cannot dip far: the grid is refined where kappa comes near 0)."""
+        knots = np.append(self.theta, self.theta[0] + TWO_PI)
+        grid = np.concatenate([np.linspace(a, b, 16, endpoint=False) for a, b in zip(knots[:-1], knots[1:])])
+        kappa = self.curvature(grid)
+        k = int(np.argmin(kappa))
+        if kappa[k] > 0:                          # refine around the smallest value
+            lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+            fine = np.linspace(lo, hi, 201)
+            kf = self.curvature(fine)
+            if kf.min() < kappa[k]:
+                grid, kappa, k = fine, kf, int(np.argmin(kf))
+        self.kappa_min = float(kappa[k])
+        if kappa[k] <= 0:
+            th = float(np.mod(grid[k], TWO_PI))
+            raise _err("contour_not_convex", f"{self.source}: the contour is not convex at theta = {th:.6g} rad "
+                       f"({math.degrees(th):.4g} deg): curvature kappa = {kappa[k]:.6g} 1/m",
+                       "a band roll's contour must be convex everywhere (r^2 + 2 r'^2 - r r'' > 0): smooth the "
+                       "table or move the points near that angle outwards")
+
+    def _tables(self, per_interval: int = 8):
+        """Dense monotone table nu(theta) and cumulative arc length (Gauss-Legendre per sub-interval)."""
+        knots = np.append(self.theta, self.theta[0] + TWO_PI)
+        edges = np.concatenate([np.linspace(a, b, per_interval, endpoint=False) for a, b in zip(knots[:-1], knots[1:])]
+                               + [knots[-1:]])
+        x, wts = np.polynomial.legendre.leggauss(8)
+        a, b = edges[:-1], edges[1:]
+        pts = 0.5 * (a[:, None] + b[:, None]) + 0.5 * (b - a)[:, None] * x[None, :]
+        speed = np.hypot(self.radius(pts), self.radius(pts, 1))
+        seg = 0.5 * (b - a) * (speed * wts[None, :]).sum(axis=1)
+        self._th = edges
+        self._cum = np.concatenate([[0.0], np.cumsum(seg)])        # arc length from theta[0]
+        self.perimeter = float(self._cum[-1])
+        self._nu = self.normal_angle(edges)
+        self._nu[-1] = self._nu[0] + TWO_PI
+
+    def contact(self, nu):
+        """Polar angle theta [rad] (unwrapped alongside nu) of the contact point whose outward normal
+        has the angle nu [rad] (Newton from the dense table; nu(theta) is strictly increasing)."""
+        nu = np.asarray(nu, dtype=float)
+        turns = np.floor((nu - self._nu[0]) / TWO_PI)
+        base = nu - TWO_PI * turns
+        th = np.interp(base, self._nu, self._th)
+        for _ in range(30):
+            r, d1, d2 = (self.radius(th, k) for k in range(3))
+            f = th - np.arctan2(d1, r) - base
+            th = th - f * (r * r + d1 * d1) / (r * r + 2 * d1 * d1 - r * d2)
+            if np.all(np.abs(f) < 1e-15):
+                break
+        return th + TWO_PI * turns
+
+    def _arc_theta(self, theta):
+        """Arc length [m] from theta[0] to theta (unwrapped)."""
+        theta = np.asarray(theta, dtype=float)
+        turns = np.floor((theta - self._th[0]) / TWO_PI)
+        base = theta - TWO_PI * turns
+        k = np.clip(np.searchsorted(self._th, base, side="right") - 1, 0, len(self._th) - 2)
+        a = self._th[k]
+        x, wts = np.polynomial.legendre.leggauss(12)
+        pts = 0.5 * (a + base)[..., None] + 0.5 * (base - a)[..., None] * x
+        part = 0.5 * (base - a) * (np.hypot(self.radius(pts), self.radius(pts, 1)) * wts).sum(axis=-1)
+        return self._cum[k] + part + self.perimeter * turns
+
+    def support(self, nu):
+        """Support function p(nu) [m]: distance from the axis to the tangent line of normal nu."""
+        th = self.contact(nu)
+        return self.radius(th) * np.cos(th - np.asarray(nu, dtype=float))
+
+    def arc(self, nu):
+        """Arc length S(nu) [m] from the contact point of normal 0 to that of normal nu (unwrapped)."""
+        return self._arc_theta(self.contact(nu)) - self._arc_theta(self.contact(0.0))
+
+    # -- a band on the roll -------------------------------------------------------------------------
+    def tangent_point(self, phi, gamma, side):
+        """Global offset [m] of the contact point from the axis for the roll turned by phi [rad] and a
+        span of inclination gamma [rad]; ``side`` = +1: the roll lies to the right of the span
+        (seen from P1 to P2), -1: to the left (the half-plane choice, made once)."""
+        th = self.contact(gamma + side * math.pi / 2 - np.asarray(phi, dtype=float)) + phi
+        r = self.radius(th - phi)
+        return np.stack([r * np.cos(th), r * np.sin(th)], axis=-1)
+
+    def lever(self, phi, gamma, side):
+        """Lever arm [m] of the band force about the axis: p(gamma + side*pi/2 - phi)."""
+        return self.support(gamma + side * math.pi / 2 - np.asarray(phi, dtype=float))
+
+    def wound(self, phi, gamma, side, w, phi0=0.0):
+        """Band material [m] that left the roll into the span since the angle phi0 (``w`` = +1: a
+        positive rotation pays out): w*(S(nu0) - S(nu)), nu = gamma + side*pi/2 - phi, unwrapped."""
+        n0 = gamma + side * math.pi / 2
+        return w * (self.arc(n0 - phi0) - self.arc(n0 - np.asarray(phi, dtype=float)))
+
+    # -- the elements' smooth form ---------------------------------------------------------------------
+    def series(self, tol: float = 1e-9, samples: int = 4096):
+        """Trigonometric series of the support function: ``(a, b)`` with p(nu) = a[0] + sum_k a[k]
+        cos(k nu) + b[k] sin(k nu), with the fewest harmonics K for which the left-out terms change
+        p by at most ``tol`` [m] (measured at 2*samples angles).  ``series_error`` records the errors
+        (p, S) [m] of the kept series against the spline itself at 512 other angles: S, whose series
+        weighs the harmonics by k, follows the spline's knot-to-knot ripple less closely (about 5e-9 m
+        for a 0.1 m ellipse from 720 points); it sets only the free length of the spans.
+        ``contour_too_rough`` if more than :data:`MAX_HARMONICS` are needed."""
+        nu = np.arange(samples) * TWO_PI / samples
+        c = np.fft.rfft(self.support(nu)) / samples
+        k = np.arange(len(c), dtype=float)
+
+        def left_out(K):
+            return float(np.max(np.abs(np.fft.irfft(np.where(k > K, c, 0.0), 2 * samples) * 2 * samples)))
+
+        lo, hi = 0, min(MAX_HARMONICS, len(c) - 2)
+        if left_out(hi) > tol:
+            raise _err("contour_too_rough", f"{self.source}: the contour's support function needs more than "
+                       f"{MAX_HARMONICS} harmonics to be represented to {tol:g} m",
+                       "give a smoother contour (fewer, smoother points) or a larger tolerance")
+        while lo < hi:                               # the fewest harmonics that meet tol
+            mid = (lo + hi) // 2
+            lo, hi = (mid + 1, hi) if left_out(mid) > tol else (lo, mid)
+        a, b = 2 * c.real[:lo + 1], -2 * c.imag[:lo + 1]
+        a[0] = c[0].real
+        check = (np.arange(512) + 0.5) * TWO_PI / 512 + 0.1
+        self.series_error = (float(np.max(np.abs(support_series(a, b, check) - self.support(check)))),
+                             float(np.max(np.abs(arc_series(a, b, check) - self.arc(check)))))
+        return a, b
+
+
+def support_series(a, b, nu):
+    """p(nu) [m] from the series coefficients (numpy)."""
+    k = np.arange(len(a))
+    nu = np.asarray(nu, dtype=float)[..., None]
+    return (a * np.cos(k * nu) + b * np.sin(k * nu)).sum(axis=-1)
+
+
+def arc_series(a, b, nu):
+    """S(nu) [m] from the series of p: S = integral of p + p'' from 0 (numpy)."""
+    k = np.arange(1, len(a))
+    nu = np.asarray(nu, dtype=float)
+    terms = (a[1:] * (1 / k - k) * np.sin(k * nu[..., None]) + b[1:] * (k - 1 / k) * (np.cos(k * nu[..., None]) - 1))
+    return a[0] * nu + terms.sum(axis=-1)
+
+
+def _sym_series(a, b, nu, arc: bool, drop: float):
+    """The series of p (or of S) as a sympy expression of ``nu``; terms below ``drop`` [m] left out."""
+    out = sp.Float(a[0]) * nu if arc else sp.Float(a[0])
+    for k in range(1, len(a)):
+        ck, sk = (a[k] * (1 / k - k), b[k] * (k - 1 / k)) if arc else (a[k], b[k])
+        if abs(ck) > drop:
+            out += sp.Float(ck) * (sp.sin(k * nu) if arc else sp.cos(k * nu))
+        if abs(sk) > drop:
+            out += sp.Float(sk) * ((sp.cos(k * nu) - 1) if arc else sp.sin(k * nu))
+    return out
+
+
+def polar_from_support(p, dp, nu):
+    """Polar form (theta, r) of the contact points p e(nu) + p' e'(nu) of a support function."""
+    x = p * np.cos(nu) - dp * np.sin(nu)
+    y = p * np.sin(nu) + dp * np.cos(nu)
+    return np.mod(np.arctan2(y, x), TWO_PI), np.hypot(x, y)
+
+
+# -- the table format ----------------------------------------------------------------------------
+
+def read_table(path) -> Contour:
+    """A contour from a CSV table: a header line ``theta [rad], r [m]`` (any text not starting with a
+    number), then one ``theta, r`` row per point, by increasing theta over one turn; ``#`` starts a
+    comment line.  Errors name the file and the line."""
+    path = Path(path)
+    name = str(path)
+    try:
+        size = os.path.getsize(path)
+        if size > MAX_TABLE_BYTES:
+            raise _err("bad_contour_table", f"{name}: the table is larger than {MAX_TABLE_BYTES // 1024} KiB",
+                       "a contour table has a few thousand rows at most")
+        text = path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise _err("no_file", f"cannot read the contour table {name}: {exc.strerror}",
+                   "the path is relative to the netlist file") from None
+    except UnicodeDecodeError:
+        raise _err("bad_contour_table", f"{name}: the table is not UTF-8 text", "save it as CSV text") from None
+    theta, r, lines = [], [], []
+    for k, row in enumerate(csv.reader(text.splitlines()), start=1):
+        cells = [c.strip() for c in row]
+        if not cells or not any(cells) or cells[0].startswith("#"):
+            continue
+        try:
+            values = [float(c) for c in cells if c]
+        except ValueError:
+            if not theta and not lines:             # the header line
+                lines.append(None)
+                continue
+            raise _err("bad_contour_table", f"{name} line {k}: expected two numbers theta [rad], r [m]",
+                       "one row per point: theta, r") from None
+        if len(values) != 2:
+            raise _err("bad_contour_table", f"{name} line {k}: expected two numbers theta [rad], r [m], got "
+                       f"{len(values)}", "one row per point: theta, r")
+        theta.append(values[0])
+        r.append(values[1])
+        lines.append(k)
+        if len(theta) > MAX_ROWS:
+            raise _err("bad_contour_table", f"{name}: more than {MAX_ROWS} rows", "a few thousand rows suffice")
+    return Contour(np.array(theta), np.array(r), name, [n for n in lines if n is not None])
+
+
+def write_table(path, theta, r, comment: str = "") -> None:
+    """Write a contour table in the format :func:`read_table` reads (17 significant digits)."""
+    with open(path, "w", encoding="utf-8") as fh:
+        for line in comment.splitlines():
+            fh.write(f"# {line}\n")
+        fh.write("theta [rad], r [m]\n")
+        for t, v in zip(theta, r):
+            fh.write(f"{float(t)!r}, {float(v)!r}\n")
+
+
+def as_contour(value) -> Contour:
+    """A Contour from a Contour, a table path, a positive number (a circle of that radius [m]) or a
+    Python callable r(theta)."""
+    if isinstance(value, Contour):
+        return value
+    if isinstance(value, (str, os.PathLike)):
+        return read_table(value)
+    if isinstance(value, (int, float, sp.Number)) and not isinstance(value, bool):
+        return Contour.circle(float(value))
+    if callable(value):
+        return Contour.from_function(value)
+    raise _err("bad_contour", f"contour {value!r} is not a table file, a number or a function",
+               "give the contour table's file name (relative to the netlist)")
+
+
+# -- elements ------------------------------------------------------------------------------------
+
+_CONTOUR_DOC = ("contour table: CSV 'theta [rad], r [m]' (polar, roll frame, one turn, convex), a path relative "
+                "to the netlist file (Python: also a Contour, a callable r(theta) or a number: a circle)")
+
+
+def _curve(kind: str, sides: int, contour, J, phi0, omega0, w, sides_of, tol, mu, r_pin, wrap):
+    c = as_contour(contour)
+    try:
+        tol = float(tol)
+    except TypeError:
+        raise _err("bad_value", f"{kind}: tol = {tol} m must be a number", "e.g. 1e-9") from None
+    for k, s in enumerate(sides_of, start=1):
+        if s not in (1, -1):
+            raise _err("bad_side", f"{kind}: side{k} = {s!r} must be +1 or -1",
+                       "+1: the roll lies to the right of span k seen from its P1 to its P2, -1: to the left")
+    a, b = c.series(tol)
+    drop = tol / (4 * len(a))
+    phi = sp.Symbol("phi")
+
+    def nu(k, angle):
+        return sp.Symbol(f"g{k}") + int(sides_of[k - 1]) * sp.pi / 2 - angle
+
+    def contact(k):
+        lever = _sym_series(a, b, nu(k, phi), False, drop)
+        wound = _sym_series(a, b, nu(k, sp.Symbol("phi0")), True, drop) - _sym_series(a, b, nu(k, phi), True, drop)
+        return lever, wound
+
+    reads = {f"g{k}": (f"e{k}.gamma", 0.0) for k in range(1, sides + 1)}
+    net = _roll(kind, sides, None, J, phi0, omega0, w, mu, r_pin, wrap, contact=contact, reads=reads)
+    for k in range(1, sides + 1):
+        lever = _sym_series(a, b, nu(k, phi), False, drop)
+        net.quantities[f"h{k}"] = Quantity(lambda V, e=lever: e.xreplace({s: V.param(s.name) for s in e.free_symbols}))
+    net.contour = c
+    return net
+
+
+_CURVE_PARAMS = [Param("contour", "", _CONTOUR_DOC, kind="file"),
+                 Param("J", "kg*m^2", "moment of inertia about the axis", 1e-3, positive=True),
+                 Param("phi0", "rad", "initial roll angle", 0.0),
+                 Param("omega0", "rad/s", "initial angular velocity", 0.0),
+                 Param("w", "-", "winding sense: +1: a positive rotation pays band out at e1 (winds in at e2)", 1.0)]
+_SIDE = "+1: the roll lies to the right of span {k} seen from the span's P1 to its P2 (contact normal at gamma + pi/2), -1: left"
+_FRICTION = [Param("tol", "m", "largest error of the lever arm and wound length of the elements' smooth contour form",
+                   1e-9, positive=True),
+             Param("mu", "-", "bearing friction coefficient (torque -mu*r_pin*radial load*sign(omega))", 0.0,
+                   nonnegative=True),
+             Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True)]
+_CURVE_QTY = _ROLL_QTY | {"h1": "m: lever arm of the band force at e1 (support function of the contour)"}
+
+
+@element("curve_roll", "band roll with a convex curve contour (Ebert 4.4.5, corrected): no-slip winding, lever arm "
+         "and wound length from the contour, inertia J, massless housing; bearing friction mu*r_pin*radial",
+         {"e1": f"band port 1 ({_BAND})", "e2": f"band port 2 ({_BAND})",
+          "drive": "1-D rotational port on the roll (angular velocity [rad/s], torque on the roll [N*m])"},
+         _CURVE_PARAMS + [Param("side1", "-", _SIDE.format(k=1), 1.0), Param("side2", "-", _SIDE.format(k=2), 1.0)]
+         + _FRICTION + [Param("wrap", "rad", "wrap angle for the radial load |F1 e1 + F2 e2| (angle between the "
+                                             "spans' directions: pi - wrap)", math.pi, positive=True)],
+         _CURVE_QTY | {"F2": "N: band tension at e2", "h2": "m: lever arm of the band force at e2"})
+def curve_roll(contour, J, phi0, omega0, w, side1, side2, tol, mu, r_pin, wrap):
+    """Curve roll [contour in m, J in kg*m^2, angles in rad]."""
+    return _curve("curve_roll", 2, contour, J, phi0, omega0, w, (side1, side2), tol, mu, r_pin, wrap)
+
+
+@element("curve_drum", "band drum with a convex curve contour (Ebert 4.4.5 derived): one band end fixed on it; "
+         "winds band in or pays it out at e1 with the contour's lever arm (a band cam)",
+         {"e1": f"band port ({_BAND})", "drive": "1-D rotational port on the drum"},
+         _CURVE_PARAMS + [Param("side1", "-", _SIDE.format(k=1), 1.0)] + _FRICTION, _CURVE_QTY)
+def curve_drum(contour, J, phi0, omega0, w, side1, tol, mu, r_pin):
+    """Curve drum [contour in m, J in kg*m^2, angles in rad]."""
+    return _curve("curve_drum", 1, contour, J, phi0, omega0, w, (side1,), tol, mu, r_pin, None)

@@ -1,0 +1,325 @@
+"""Curve contours, the curve roll and the curve drum (issue 13, Ebert 4.4.5 corrected).
+
+Expected values: the circle (band_roll's own formulas), the ellipse's closed forms (support function
+sqrt(a^2 cos^2 nu + b^2 sin^2 nu), its integral a*E(nu | m) and its arc length by the incomplete
+elliptic integral, its tangent point (a cos t, b sin t) with tan t = (b/a) tan nu), a transfer
+function prescribed in closed form and turned into a contour (synthesis round trip), the polar
+curvature formula, and energy balances computed from the states.
+"""
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.special import ellipeinc
+
+from elements.belt_contour import Contour, read_table, write_table
+from multipole import ModelError, NetlistError, pipeline
+from multipole.netlist import load, loads
+
+BELTS = Path(__file__).resolve().parents[1] / "diagrams" / "belts"
+A_, B_ = 0.12, 0.08                     # ellipse half axes [m]
+M_ = 1 - (B_ / A_) ** 2                 # parameter of the elliptic integrals
+
+
+def _ellipse_r(theta):
+    return A_ * B_ / np.sqrt((B_ * np.cos(theta)) ** 2 + (A_ * np.sin(theta)) ** 2)
+
+
+def _ellipse_support(nu):
+    return np.sqrt((A_ * np.cos(nu)) ** 2 + (B_ * np.sin(nu)) ** 2)
+
+
+def _ellipse_t(nu):
+    """Ellipse parameter t of the point with outward normal nu (tan t = (b/a) tan nu), unwrapped."""
+    base = np.arctan2(B_ * np.sin(nu), A_ * np.cos(nu))
+    return base + 2 * np.pi * np.round((nu - base) / (2 * np.pi))
+
+
+def _ellipse_arc(nu):
+    """Arc length from the point of normal 0 (t = 0) to that of normal nu: a * int_0^t sqrt(1 - m cos^2)."""
+    t = _ellipse_t(nu)
+    return A_ * (ellipeinc(np.pi / 2, M_) - ellipeinc(np.pi / 2 - t, M_))
+
+
+@pytest.fixture(scope="module")
+def ellipse():
+    return Contour.from_function(_ellipse_r, 720, "ellipse")
+
+
+# -- the contour -----------------------------------------------------------------------------------
+
+def test_ellipse_support_function_arc_length_and_tangent_point_against_closed_forms(ellipse):
+    """The spline through 720 points of the ellipse: its radius is O(h^4) off (h = 0.0087 rad: a few
+    1e-11 m measured on p and on the perimeter 4 a E(m)), its tangent direction O(h^3), which moves the
+    contact point of a given normal along the contour and so the arc length S (5.4e-9 m measured):
+    1e-9 m and 2e-8 m bound them."""
+    nu = np.linspace(-7.0, 7.0, 203)             # more than two turns: unwrapped
+    np.testing.assert_allclose(ellipse.support(nu), _ellipse_support(nu), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ellipse.arc(nu), _ellipse_arc(nu), rtol=0, atol=2e-8)
+    assert ellipse.perimeter == pytest.approx(4 * A_ * ellipeinc(np.pi / 2, M_), abs=1e-9)
+    # the tangent point for a roll turned by phi and a span of inclination gamma, roll on the right
+    phi, gamma = 0.7, 0.3
+    nu0 = gamma + np.pi / 2 - phi
+    t = _ellipse_t(nu0)
+    local = np.array([A_ * np.cos(t), B_ * np.sin(t)])
+    rot = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
+    np.testing.assert_allclose(ellipse.tangent_point(phi, gamma, 1), rot @ local, atol=2e-8)
+    # the lever arm is the distance from the axis to the span line through that point
+    u = np.array([np.cos(gamma), np.sin(gamma)])
+    point = rot @ local
+    assert ellipse.lever(phi, gamma, 1) == pytest.approx(abs(point[0] * u[1] - point[1] * u[0]), abs=2e-8)
+    # wound length: material between the contact points, w*(S(nu0) - S(nu))
+    assert ellipse.wound(1.9, gamma, 1, 1, phi0=0.2) == pytest.approx(
+        _ellipse_arc(gamma + np.pi / 2 - 0.2) - _ellipse_arc(gamma + np.pi / 2 - 1.9), abs=4e-8)
+
+
+def test_series_of_the_elements_follows_the_spline(ellipse):
+    """The elements' trigonometric form of p meets its tolerance against the spline; the perimeter is
+    2 pi a0 (Cauchy), and a circle is its constant."""
+    a, b = ellipse.series(1e-10)
+    assert ellipse.series_error[0] <= 1e-10
+    assert 2 * np.pi * a[0] == pytest.approx(ellipse.perimeter, abs=1e-9)
+    assert np.all(np.abs(a[1::2]) < 1e-12) and np.all(np.abs(b) < 1e-12)     # symmetric: even cosines only
+    a, b = Contour.circle(0.05).series()
+    assert a[0] == pytest.approx(0.05, rel=1e-15) and len(a) == 1
+
+
+def test_non_convex_contour_is_refused_with_the_angle_and_the_curvature():
+    """r = 0.1 (1 + 0.3 cos 3 theta): at theta = pi/3 (r = 0.07, r' = 0, r'' = 0.27) the polar
+    curvature (r^2 + 2 r'^2 - r r'')/(r^2 + r'^2)^1.5 is (0.0049 - 0.0189)/0.07^3 = -40.8163 1/m,
+    the minimum (by symmetry also at pi and 5 pi/3)."""
+    with pytest.raises(ModelError) as exc:
+        Contour.from_function(lambda th: 0.1 * (1 + 0.3 * np.cos(3 * th)), 720, "trefoil")
+    assert exc.value.code == "contour_not_convex"
+    theta, kappa = (float(v) for v in re.search(r"theta = ([-\d.e]+) rad .*kappa = ([-\d.e+]+) 1/m",
+                                                 exc.value.message).groups())
+    assert min(abs(theta - c) for c in (np.pi / 3, np.pi, 5 * np.pi / 3)) < 1e-3
+    assert kappa == pytest.approx((0.07 ** 2 - 0.07 * 0.27) / 0.07 ** 3, rel=1e-4)
+    assert "trefoil" in exc.value.message
+
+
+def _table(tmp_path, rows, name="t.csv"):
+    path = tmp_path / name
+    path.write_text("theta [rad], r [m]\n" + "".join(f"{t}, {r}\n" for t, r in rows))
+    return path
+
+
+@pytest.mark.parametrize("rows, code, where", [
+    ([(0, 0.1), (2, 0.1), (1, 0.1), (4, 0.1)], "contour_not_increasing", "line 4"),
+    ([(0, 0.1), (1, 0.1), (2, -0.1), (4, 0.1)], "contour_negative_radius", "line 4"),
+    ([(0, 0.1), (2, 0.1), (4, 0.1), (2 * math.pi, 0.12)], "contour_not_periodic", "line 5"),
+    ([(0, 0.1), (2, 0.1), (4, 0.1), (7, 0.1)], "contour_not_periodic", "more than one turn"),
+    ([(0, 0.1), (2, "x"), (4, 0.1)], "bad_contour_table", "line 3"),
+    ([(0, 0.1), (2, 0.1)], "bad_contour", "at least 3"),
+])
+def test_bad_tables_are_refused_with_the_file_and_line(tmp_path, rows, code, where):
+    with pytest.raises(ModelError) as exc:
+        read_table(_table(tmp_path, rows))
+    assert exc.value.code == code and "t.csv" in exc.value.message and where in exc.value.message
+
+
+def test_table_round_trip_and_closing_row(tmp_path, ellipse):
+    """write_table / read_table keep every digit; a closing row at theta0 + 2 pi with the first radius
+    is accepted and dropped."""
+    path = tmp_path / "e.csv"
+    write_table(path, ellipse.theta, ellipse.r, "an ellipse")
+    back = read_table(path)
+    assert np.array_equal(back.theta, ellipse.theta) and np.array_equal(back.r, ellipse.r)
+    closed = read_table(_table(tmp_path, [(0, 0.1), (2, 0.1), (4, 0.1), (2 * math.pi, 0.1)]))
+    assert len(closed.theta) == 3
+
+
+# -- the elements ---------------------------------------------------------------------------------
+
+WINCH = """
+name: winch
+parameters: {EA: 2.0e4, l: 1.0, l0: 0.99, w: 0.5}
+elements:
+  motor: {type: speed_source, value: -w}
+  drum: {DRUM}
+  rope: {type: band, EA: EA, cd: 0.0, l: l, l0: l0, gamma: 0.3}
+connections:
+  - [motor.p, drum.drive]
+  - [drum.e1, rope.e1]
+outputs: [rope.F, rope.free, rope.stretch, rope.length, rope.lr1, drum.phi, drum.omega, drum.F1, drum.friction]
+simulate: {t_end: 1.0, rtol: 1e-11, atol: 1e-13, dt_out: 0.05}
+"""
+
+
+def _winch(tmp_path, drum, **kw):
+    return pipeline.run(loads(WINCH.replace("{DRUM}", drum), str(tmp_path / "winch.yaml")), progress=False, **kw)
+
+
+def test_circle_contour_reproduces_band_roll_and_drum_exactly(tmp_path):
+    """A circle table gives the circular roll's lever arm r and wound length r (phi - phi0): the same
+    run as drum and band_roll, output for output, to rounding."""
+    write_table(tmp_path / "circle.csv", np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, 0.1))
+    ref = _winch(tmp_path, "{type: drum, r: 0.1, J: 0.01}")
+    got = _winch(tmp_path, "{type: curve_drum, contour: circle.csv, J: 0.01}")
+    for name, values in ref.outputs.items():
+        np.testing.assert_allclose(got.outputs[name], values, rtol=1e-12, atol=1e-15, err_msg=name)
+    text = (BELTS / "belt_drive.yaml").read_text()
+    curved = text.replace("type: band_roll, r: 0.05,", "type: curve_roll, contour: c05.csv,").replace(
+        "type: band_roll, r: 0.1,", "type: curve_roll, contour: c10.csv,")
+    assert curved.count("curve_roll") == 2
+    for name, r in (("c05.csv", 0.05), ("c10.csv", 0.1)):
+        write_table(tmp_path / name, np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, r))
+    ref = pipeline.run(loads(text, str(tmp_path / "a.yaml")), t_end=0.5, progress=False)
+    got = pipeline.run(loads(curved, str(tmp_path / "b.yaml")), t_end=0.5, progress=False)
+    for name, values in ref.outputs.items():
+        np.testing.assert_allclose(got.outputs[name], values, rtol=1e-10, atol=1e-12, err_msg=name)
+
+
+def test_ellipse_drum_lever_arm_and_wound_length_against_closed_forms(tmp_path, ellipse):
+    """An elliptic drum turning backwards at 0.5 rad/s, its rope of inclination 0.3 rad tied at P2; the
+    drum at the rope's P1 end pays out under a positive rotation (w = +1), so it lies to the left of
+    the span (side1 = -1: the band leaves the contact along the span's direction).
+    The span's free length grows at w p(nu) omega, so the stretch is d0 + a (E(nu|m) - E(nu0|m))
+    (nu = gamma + pi/2 - phi, the integral of the support function); the wound length is the arc
+    between the contact points; the span's geometric length shrinks by the contact point's travel
+    along the span (the tangent point of the closed form).  Tolerances: the elements' series (tol
+    1e-10 m on p, its measured error on S) and the integration (rtol 1e-11)."""
+    write_table(tmp_path / "ellipse.csv", ellipse.theta, ellipse.r)
+    res = _winch(tmp_path, "{type: curve_drum, contour: ellipse.csv, J: 0.01, tol: 1.0e-10, side1: -1}",
+                 outputs=["rope.stretch", "rope.lr1", "rope.length", "rope.F", "drum.phi", "drum.h1"])
+    ellipse.series(1e-10)
+    s_err = ellipse.series_error[1]
+    phi = res.outputs["drum.phi"]
+    np.testing.assert_allclose(phi, -0.5 * res.t, rtol=1e-12, atol=1e-14)
+    gamma = 0.3
+    nu, nu0 = gamma - np.pi / 2 - phi, gamma - np.pi / 2       # the drum lies left of the span (side -1)
+    np.testing.assert_allclose(res.outputs["drum.h1"], _ellipse_support(nu), rtol=0, atol=2e-10)
+    stretch = 0.01 + A_ * (ellipeinc(nu, M_) - ellipeinc(nu0, M_))
+    np.testing.assert_allclose(res.outputs["rope.stretch"], stretch, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(res.outputs["rope.lr1"], _ellipse_arc(nu0) - _ellipse_arc(nu), rtol=0,
+                               atol=2 * s_err + 4e-8)
+    t0, t = _ellipse_t(nu0), _ellipse_t(nu)
+    u = np.array([np.cos(gamma), np.sin(gamma)])
+
+    def point(tt, ph):           # contact point in the frame, projected on the span direction
+        return (np.cos(ph) * A_ * np.cos(tt) - np.sin(ph) * B_ * np.sin(tt)) * u[0] + \
+               (np.sin(ph) * A_ * np.cos(tt) + np.cos(ph) * B_ * np.sin(tt)) * u[1]
+    np.testing.assert_allclose(res.outputs["rope.length"], 1.0 - (point(t, phi) - point(t0, 0.0)), rtol=0,
+                               atol=2 * s_err + 4e-8)
+    assert res.outputs["rope.F"][-1] > res.outputs["rope.F"][0]          # winding in raises the tension
+
+
+def test_transfer_function_round_trip_from_a_prescribed_cam(tmp_path):
+    """Synthesis by hand: the band cam that draws the band in by X(phi) = h0 phi - (A/2) sin 2 phi
+    has the lever arm X' = h0 - A cos 2 phi, i.e. the support function p(nu) = h0 - A cos 2(nu0 - nu)
+    (convex: p + p'' = h0 + 3 A cos > 0); its contact points give the polar table.  Read back as a
+    curve drum and turned over 1.5 turns, the band's displacement (the stretch with the far end
+    tied) is X(phi) to 1e-8 of the stroke."""
+    h0, amp, gamma = 0.1, 0.02, 0.0
+    nu0 = gamma - np.pi / 2
+    cam = Contour.from_support(lambda nu: h0 - amp * np.cos(2 * (nu0 - nu)),
+                               lambda nu: -2 * amp * np.sin(2 * (nu0 - nu)), 1440, "cam")
+    write_table(tmp_path / "cam.csv", cam.theta, cam.r, "synthesised band cam")
+    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: cam.csv, J: 0.01, side1: -1}").replace(
+        "value: -w", "value: w").replace("t_end: 1.0", "t_end: 18.85")
+    text = text.replace("gamma: 0.3", "gamma: 0.0")
+    res = pipeline.run(loads(text, str(tmp_path / "cam.yaml")), progress=False,
+                       outputs=["rope.stretch", "drum.phi"])
+    phi = res.outputs["drum.phi"]
+    X = h0 * phi - amp / 2 * np.sin(2 * phi)
+    stroke = X[-1] - X[0]
+    assert stroke > 0.9
+    # the drum pays out (w = +1, positive rotation): the stretch falls by X (slack after a while:
+    # the state still integrates the material balance)
+    np.testing.assert_allclose(0.01 - res.outputs["rope.stretch"], X, rtol=0, atol=1e-8 * stroke)
+
+
+def test_toothed_belt_ratio_follows_the_design_and_both_spans_stay_taut():
+    """Ebert 7.3.2: over 720 deg of the small wheel the big wheel turns 360 deg (mean ratio 2:1) up
+    to the belt's elastic deflection; omega1/omega2 swings between about i_min and i_max = 1.5 i_min
+    (plus the torsional vibration of the big wheel); the lever arms in the model are the design's."""
+    import sys
+    sys.path.insert(0, str(BELTS))
+    import toothed_belt_design as design
+    res = pipeline.run(load(BELTS / "toothed_belt.yaml"), progress=False)
+    o = res.outputs
+    # elastic deflection: F/k * 2 spans ~ 1e-3 m over the lever arm 0.16 m: about 1e-2 rad at most
+    np.testing.assert_allclose(o["wheel2.phi"], design.phi2_of(o["wheel1.phi"]), rtol=0, atol=5e-3)
+    assert o["wheel2.phi"][-1] == pytest.approx(2 * np.pi, abs=5e-3)
+    i = o["wheel1.omega"] / o["wheel2.omega"]
+    assert 1.5 < i.min() < 1.7 and 2.4 < i.max() < 2.8
+    c1, c2 = (read_table(BELTS / f"toothed_belt_wheel{k}.csv") for k in (1, 2))
+    np.testing.assert_allclose(o["wheel1.h1"], c1.support(-np.pi / 2 - o["wheel1.phi"]), atol=1e-9)
+    np.testing.assert_allclose(o["wheel2.h1"], c2.support(np.pi / 2 - o["wheel2.phi"]), atol=1e-9)
+    assert o["top.F"].min() > 0 and o["bottom.F"].min() > 0
+
+
+def test_toothed_belt_design_has_the_prescribed_ratio_and_a_constant_model_length():
+    """The pitch curves from the tables: p2(pi/2 - phi2)/p1(pi/2 - phi1) = i(phi1) on the upper span and
+    the same on the lower one (central symmetry), so in the model with parallel spans the belt length
+    is invariant; i_max/i_min = 1.5, mean ratio 2 (wheel perimeters 1:2)."""
+    import sys
+    sys.path.insert(0, str(BELTS))
+    import toothed_belt_design as design
+    c1, c2 = (read_table(BELTS / f"toothed_belt_wheel{k}.csv") for k in (1, 2))
+    phi1 = np.linspace(0.0, 4 * np.pi, 97)
+    phi2 = design.phi2_of(phi1)
+    i = 2 / np.sqrt(1 - 0.2 ** 2) * (1 + 0.2 * np.cos(2 * phi1))
+    for normal in (np.pi / 2, -np.pi / 2):
+        np.testing.assert_allclose(c2.support(normal - phi2) / c1.support(normal - phi1), i, rtol=1e-8)
+    assert i.max() / i.min() == pytest.approx(1.5, rel=1e-3)
+    assert c2.perimeter / c1.perimeter == pytest.approx(2.0, rel=1e-9)
+
+
+# -- power balance ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", range(2))
+def test_power_balance_of_the_curve_roll_at_random_states(seed):
+    """Toothed belt with pin friction on both wheels, random states: the power into each roll at its
+    band and drive ports equals d/dt p^2/(2J) + mu r_pin (F1 + F2) |omega| (the contour's
+    transformer is lossless: the torque is w p F), to 1e-10."""
+    rng = np.random.default_rng(seed)
+    sc = load(BELTS / "toothed_belt.yaml", {"wheel1.mu": 0.2, "wheel2.mu": 0.2})
+    model = pipeline.model(sc, prune=False)
+    names = list(model.state_names)
+    J = {"wheel1": 2.0e-3, "wheel2": 0.05}
+    for _trial in range(3):
+        x = np.asarray(model.x0, dtype=float).copy()
+        for k, n in enumerate(names):
+            if n.endswith("c.q"):
+                x[k] = rng.uniform(2e-4, 1.5e-3)                     # both spans taut
+            elif n.endswith("J.p"):
+                x[k] *= rng.uniform(0.5, 1.5)
+            elif n.endswith("tap.q"):
+                x[k] = rng.uniform(-4, 4)
+        vals, dx, st = model.port_values(0.3, x), dict(zip(names, model.rhs(0.3, x))), dict(zip(names, x))
+        for roll in ("wheel1", "wheel2"):
+            ports = ["T1.a", "T2.a", "W.drive"]
+            ext = sum(vals[f"{roll}.{p}.e"] * vals[f"{roll}.{p}.f"] for p in ports)
+            if f"{roll}.J.p" in st:
+                omega = st[f"{roll}.J.p"] / J[roll]
+                dE = omega * dx[f"{roll}.J.p"]
+            else:                                   # the driven wheel's momentum is not a state
+                omega, dE = vals[f"{roll}.W.drive.f"], vals[f"{roll}.J.p.f"] * vals[f"{roll}.J.p.e"]
+            F1, F2 = vals[f"{roll}.T1.a.e"], vals[f"{roll}.T2.a.e"]
+            loss = 0.2 * 0.004 * (F1 + F2) * abs(omega)
+            scale = abs(dE) + abs(loss) + sum(abs(vals[f"{roll}.{p}.e"] * vals[f"{roll}.{p}.f"]) for p in ports)
+            assert abs(ext - (dE + loss)) <= 1e-10 * scale, roll
+
+
+# -- netlist errors ----------------------------------------------------------------------------------
+
+def test_table_errors_name_the_netlist_the_element_and_the_table(tmp_path):
+    _table(tmp_path, [(0, 0.1), (2, -0.1), (4, 0.1)], "bad.csv")
+    with pytest.raises(NetlistError) as exc:
+        _winch(tmp_path, "{type: curve_drum, contour: bad.csv}")
+    assert exc.value.code == "contour_negative_radius"
+    text = str(exc.value)
+    assert "winch.yaml:6" in text and "'drum'" in text and "bad.csv line 3" in text
+    with pytest.raises(NetlistError) as exc:
+        _winch(tmp_path, "{type: curve_drum, contour: missing.csv}")
+    assert exc.value.code == "no_file" and "missing.csv" in str(exc.value)
+    with pytest.raises(NetlistError) as exc:
+        _winch(tmp_path, "{type: curve_drum, contour: 0.1}")
+    assert exc.value.code == "bad_value"
+    write_table(tmp_path / "circle.csv", np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, 0.1))
+    with pytest.raises(NetlistError) as exc:
+        _winch(tmp_path, "{type: curve_drum, contour: circle.csv, side1: 0}")
+    assert exc.value.code == "bad_side" and "'drum'" in str(exc.value)

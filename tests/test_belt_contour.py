@@ -183,7 +183,8 @@ def test_ellipse_drum_lever_arm_and_wound_length_against_closed_forms(tmp_path, 
     1e-10 m on p, its measured error on S) and the integration (rtol 1e-11)."""
     write_table(tmp_path / "ellipse.csv", ellipse.theta, ellipse.r)
     res = _winch(tmp_path, "{type: curve_drum, contour: ellipse.csv, J: 0.01, tol: 1.0e-10, side1: -1}",
-                 outputs=["rope.stretch", "rope.lr1", "rope.length", "rope.F", "drum.phi", "drum.h1"])
+                 outputs=["rope.stretch", "rope.lr1", "rope.length", "rope.F", "drum.phi", "drum.h1", "drum.omega",
+                          "drum.F1", "drum.friction"])
     ellipse.series(1e-10)
     s_err = ellipse.series_error[1]
     phi = res.outputs["drum.phi"]
@@ -204,6 +205,9 @@ def test_ellipse_drum_lever_arm_and_wound_length_against_closed_forms(tmp_path, 
     np.testing.assert_allclose(res.outputs["rope.length"], 1.0 - (point(t, phi) - point(t0, 0.0)), rtol=0,
                                atol=2 * s_err + 4e-8)
     assert res.outputs["rope.F"][-1] > res.outputs["rope.F"][0]          # winding in raises the tension
+    np.testing.assert_allclose(res.outputs["drum.omega"], -0.5, rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["drum.F1"], res.outputs["rope.F"], rtol=1e-12)
+    np.testing.assert_allclose(res.outputs["drum.friction"], 0.0, atol=0)
 
 
 def test_transfer_function_round_trip_from_a_prescribed_cam(tmp_path):
@@ -238,7 +242,9 @@ def test_toothed_belt_ratio_follows_the_design_and_both_spans_stay_taut():
     import sys
     sys.path.insert(0, str(BELTS))
     import toothed_belt_design as design
-    res = pipeline.run(load(BELTS / "toothed_belt.yaml"), progress=False)
+    outs = ["wheel1.phi", "wheel1.omega", "wheel2.phi", "wheel2.omega", "top.F", "bottom.F", "wheel1.h1",
+            "wheel2.h1", "wheel2.h2", "wheel1.F1", "wheel1.F2", "wheel2.friction", "wheel2.F1", "wheel2.F2"]
+    res = pipeline.run(load(BELTS / "toothed_belt.yaml", {"wheel2.mu": 0.05}), progress=False, outputs=outs)
     o = res.outputs
     # elastic deflection: F/k * 2 spans ~ 1e-3 m over the lever arm 0.16 m: about 1e-2 rad at most
     np.testing.assert_allclose(o["wheel2.phi"], design.phi2_of(o["wheel1.phi"]), rtol=0, atol=5e-3)
@@ -248,6 +254,12 @@ def test_toothed_belt_ratio_follows_the_design_and_both_spans_stay_taut():
     c1, c2 = (read_table(BELTS / f"toothed_belt_wheel{k}.csv") for k in (1, 2))
     np.testing.assert_allclose(o["wheel1.h1"], c1.support(-np.pi / 2 - o["wheel1.phi"]), atol=1e-9)
     np.testing.assert_allclose(o["wheel2.h1"], c2.support(np.pi / 2 - o["wheel2.phi"]), atol=1e-9)
+    np.testing.assert_allclose(o["wheel2.h2"], c2.support(-np.pi / 2 - o["wheel2.phi"]), atol=1e-9)
+    # e1 of wheel 1 is the lower span's P2 end, e2 the upper span's P1 end; pin friction of wheel 2
+    # mu r_pin (F1 + F2) with parallel spans (wrap pi), against omega > 0
+    np.testing.assert_allclose(o["wheel1.F1"], o["bottom.F"], rtol=1e-12)
+    np.testing.assert_allclose(o["wheel1.F2"], o["top.F"], rtol=1e-12)
+    np.testing.assert_allclose(o["wheel2.friction"], 0.05 * 0.004 * (o["wheel2.F1"] + o["wheel2.F2"]), rtol=1e-12)
     assert o["top.F"].min() > 0 and o["bottom.F"].min() > 0
 
 

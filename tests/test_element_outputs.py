@@ -562,7 +562,8 @@ CHECKED = {
 CHECKED_IN = {**{k: ("test_linkage_dynamics.py", "test_linkage_slide.py", "test_linkage_guides.py")
                  for k in ("DAN", "DDD", "SAN", "FGP", "DDS", "DSD", "SSD", "SDS")},
               **{k: ("test_belts.py",) for k in ("band", "band_roll", "drum")},
-              "belt_pulley": ("test_belt_friction.py",)}
+              "belt_pulley": ("test_belt_friction.py",),
+              **{k: ("test_belt_contour.py",) for k in ("curve_roll", "curve_drum")}}
 
 
 def test_every_documented_output_is_checked():

@@ -462,9 +462,27 @@ def main(argv=None):
             "near-linear growth (section 3), compiled backend ≥ 20× faster than the hand-written scipy model at "
             "equal error on every bench scene (section 6).", ""]
     body = (head + section_rhs(reports, chains) + section_naive(reports) + section_chains(chains)
-            + section_scenes(reports) + section_hard(long_rows, stick_rows, reports) + section_backend(reports, old))
+            + section_scenes(reports) + section_hard(long_rows, stick_rows, reports) + section_backend(reports, old)
+            + kept_sections(old))
     path.write_text("\n".join(body) + "\n", encoding="utf-8")
     print(f"wrote {path} ({minutes:.1f} min)")
+
+
+#: the headers of the sections this script writes ("## 0." … "## 6."); every other ``## `` section of
+#: an existing report (pruning, sweeps, reduction, linkages, belts: measured by their own scripts,
+#: each naming its command) is carried over unchanged, in its order, after them
+GENERATED = re.compile(r"## [0-6]\. ")
+
+
+def kept_sections(old: str) -> list:
+    """The lines of the ``## `` sections of the report ``old`` that this script does not generate."""
+    kept, keep = [], False
+    for line in old.splitlines():
+        if line.startswith("## "):
+            keep = not GENERATED.match(line)
+        if keep:
+            kept.append(line)
+    return kept
 
 
 def _cores() -> int:

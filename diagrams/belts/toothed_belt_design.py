@@ -8,8 +8,8 @@ with e = 0.2 (i_max/i_min = 1.5) and c = 2/sqrt(1 - e^2) (wheel 2 turns once per
 wheel 1: mean ratio 2:1).  Both pitch curves are centrally symmetric, so the upper and the lower
 span see the same lever arms and one rolling condition serves both spans:
 
-    p1(pi/2 - phi1)          = R1 (1 - e1 cos 2 phi1)         (wheel 1, two lobes)
-    p2(pi/2 - phi2(phi1))    = i(phi1) p1(pi/2 - phi1)       (wheel 2, four lobes)
+    p2(nu)                   = R2 (1 + e2 cos 4 nu)                    (wheel 2, four gentle lobes)
+    p1(pi/2 - phi1)          = p2(pi/2 - phi2(phi1)) / i(phi1)         (wheel 1, two lobes)
     phi2(phi1)               = (1/2) atan2(q sin phi1, cos phi1) unwrapped, q = sqrt((1 - e)/(1 + e))
 
 p are support functions (lever arms), turned into polar tables by the contact point p e + p' e'.
@@ -100,31 +100,59 @@ def slope(c: Contour, nu):
     return float(c.radius(th) * np.sin(th - nu))
 
 
-def figure(path=HERE.parents[1] / "docs" / "figures" / "belts_toothed_belt.png", result=None):
-    from multipole.plotting import new_figure
+def simulate():
+    """The scene's run: wheel angles, speeds and strand forces over 720 deg of wheel 1."""
+    from multipole import pipeline
+    from multipole.netlist import load
+    return pipeline.run(load(HERE / "toothed_belt.yaml"), progress=False)
+
+
+def figure(res, path=HERE.parents[1] / "docs" / "figures" / "belts_toothed_belt.png"):
+    """Pitch curves, ratio over the drive angle (prescribed and simulated), strand forces."""
+    from multipole.plotting import new_figure, save
     c1, c2 = read_table(HERE / "toothed_belt_wheel1.csv"), read_table(HERE / "toothed_belt_wheel2.csv")
-    fig, (ax1, ax2) = new_figure(1, 2, figsize=(11, 4.2))
+    fig = new_figure(15, 4.4)
+    ax1, ax2, ax3 = fig.subplots(1, 3)
     th = np.linspace(0, 2 * math.pi, 721)
-    for c, x0, label in ((c1, 0.0, "wheel 1"), (c2, A, "wheel 2")):
+    for c, x0, label in ((c1, 0.0, "wheel 1 (driving)"), (c2, A, "wheel 2")):
         r = c.radius(th)
         ax1.plot(x0 + r * np.cos(th), r * np.sin(th), label=label)
         ax1.plot([x0], [0], "k+")
+    for y in (1, -1):                                   # the model's parallel spans at phi = 0
+        ax1.plot([0, A], [y * c1.support(y * math.pi / 2), y * c2.support(y * math.pi / 2)], "k:", lw=1)
     ax1.set_aspect("equal")
     ax1.set_xlabel("x [m]")
     ax1.set_ylabel("y [m]")
     ax1.set_title("pitch curves at phi = 0 (centre distance 0.8 m)")
-    ax1.legend(loc="upper center")
-    phi1 = np.linspace(0, 4 * math.pi, 401)
-    ax2.plot(np.degrees(phi1), ratio(phi1), "k-", lw=3, alpha=0.3, label="prescribed i(phi1)")
-    if result is not None:
-        ax2.plot(np.degrees(result["phi1"]), result["i"], "C3--", label="simulated omega1/omega2")
+    ax1.legend(loc="upper center", fontsize=8)
+    o = res.outputs
+    deg = np.degrees(o["wheel1.phi"])
+    ax2.plot(deg, ratio(o["wheel1.phi"]), "k-", lw=4, alpha=0.3, label="prescribed i(phi1)")
+    ax2.plot(deg, o["wheel1.omega"] / o["wheel2.omega"], "C3-", lw=1, label="simulated omega1/omega2")
     ax2.set_xlabel("drive angle phi1 [deg]")
-    ax2.set_ylabel("ratio i = omega1/omega2 [-]")
-    ax2.set_title("ratio over one turn of wheel 2")
-    ax2.legend()
-    fig.savefig(path, dpi=110)
+    ax2.set_ylabel("ratio i [-]")
+    ax2.set_title("ratio (i_max/i_min = 1.5, mean 2)")
+    ax2.legend(fontsize=8)
+    ax3.plot(deg, o["top.F"], label="upper span (tight: load on wheel 2)")
+    ax3.plot(deg, o["bottom.F"], label="lower span")
+    ax3.set_xlabel("drive angle phi1 [deg]")
+    ax3.set_ylabel("strand force [N]")
+    ax3.set_title("strand forces (EA = 1e5 N, cd = 50 N s)")
+    ax3.legend(fontsize=8)
+    save(fig, path, dpi=100)
+
+
+def length_error(n=145):
+    """Largest change [m] of the real open belt's length over one turn of wheel 2 (the model's
+    spans are parallel; the real ones are the common tangents), and the mean length [m]."""
+    c1, c2 = read_table(HERE / "toothed_belt_wheel1.csv"), read_table(HERE / "toothed_belt_wheel2.csv")
+    phi1 = np.linspace(0, 4 * math.pi, n)
+    L = np.array([open_belt_length(c1, c2, p, float(phi2_of(p))) for p in phi1])
+    return float(L.max() - L.min()), float(L.mean())
 
 
 if __name__ == "__main__":
     tables()
-    print("tables written")
+    figure(simulate())
+    dL, L = length_error()
+    print(f"tables and figure written; real open belt: length {L:.6f} m, changes by {dL * 1e3:.3f} mm over a turn")

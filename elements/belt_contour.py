@@ -105,6 +105,13 @@ class Contour:
             if len(th) < 3:
                 raise _err("bad_contour", f"{self.source}: a contour needs at least 3 points over one turn",
                            "give the radius at three or more angles")
+        gaps = np.diff(np.append(th, th[0] + TWO_PI))
+        if gaps[-1] > 4 * gaps[:-1].max():          # an engaged arc, not a closed contour
+            raise _err("contour_not_closed", f"{self.source}: the table covers theta = {th[0]:.6g} .. {th[-1]:.6g} "
+                       f"rad only, a gap of {math.degrees(gaps[-1]):.4g} deg (its largest step is "
+                       f"{math.degrees(gaps[:-1].max()):.3g} deg)",
+                       "a roll's contour goes once round its axis: give the whole turn (an engaged arc "
+                       "from a synthesis needs a convex closing part)")
         self.theta, self.r = th, r
         self.spline = CubicSpline(np.append(th, th[0] + TWO_PI), np.append(r, r[0]), bc_type="periodic")
         self._check_convex()

@@ -113,6 +113,7 @@ def _table(tmp_path, rows, name="t.csv"):
     ([(0, 0.1), (2, 0.1), (4, 0.1), (7, 0.1)], "contour_not_periodic", "more than one turn"),
     ([(0, 0.1), (2, "x"), (4, 0.1)], "bad_contour_table", "line 3"),
     ([(0, 0.1), (2, 0.1)], "bad_contour", "at least 3"),
+    ([(1.5, 0.05), (1.7, 0.05), (1.9, 0.05), (2.1, 0.05)], "contour_not_closed", "covers theta = 1.5 .. 2.1"),
 ])
 def test_bad_tables_are_refused_with_the_file_and_line(tmp_path, rows, code, where):
     with pytest.raises(ModelError) as exc:

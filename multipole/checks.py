@@ -707,15 +707,36 @@ def mobility(ctx: Context):
         f"order: {'; '.join(steps)}", elements=[s.split(" ", 1)[0] for s in steps])
 
 
-def _termination(node) -> str:
-    return ("held: fixed to the frame (flow 0)" if node.held else
-            "free end (effort 0)" if node.domain.free_variable == "e" else "open (flow 0)")
+def _termination(node, held_by=None) -> str:
+    """How an unconnected port is terminated; ``held_by``: the netlist port of a held termination its
+    flow is rigidly tied to (a bearing's support on a frame-fixed housing), if any."""
+    if node.held:
+        return "held: fixed to the frame (flow 0)"
+    if held_by:
+        return f"held by the frame (its motion is that of {held_by}, fixed to the frame; no load taken: effort 0)"
+    return "free end (effort 0)" if node.domain.free_variable == "e" else "open (flow 0)"
+
+
+def _held_by(ctx: Context) -> dict:
+    """``{primitive port path: netlist port}``: the unconnected free ports whose flow is rigidly tied
+    (one alias of the analysis) to the flow of a held termination, i.e. frame-fixed too, and that
+    held port."""
+    aliases = ctx.analysis.aliases
+
+    def rep(pp):
+        v = var(pp + ".f")
+        return aliases.get(v, (v, 1))[0]
+    held = {rep(n.ports[0]): ctx.names.port(n.ports[0]) for n in ctx.flat.nodes
+            if n.origin == "termination" and n.held}
+    return {n.ports[0]: held[rep(n.ports[0])] for n in ctx.flat.nodes
+            if n.origin == "termination" and not n.held and rep(n.ports[0]) in held and held[rep(n.ports[0])]}
 
 
 @register("unconnected_port", "info", "a port nobody connected takes its default termination (a bundle port "
           "is listed once: an anchor left unconnected is fixed to the frame at its frame pose)")
 def unconnected_port(ctx: Context):
     flat = ctx.flat
+    held_by = _held_by(ctx)
     loose: dict = {}                                  # netlist port -> its termination node
     for node in flat.nodes:
         port = ctx.names.port(node.ports[0]) if node.origin == "termination" else None
@@ -738,7 +759,7 @@ def unconnected_port(ctx: Context):
                 continue
         if head in shown:
             continue
-        yield Diagnostic("unconnected_port", f"{port} is not connected: {_termination(node)}",
+        yield Diagnostic("unconnected_port", f"{port} is not connected: {_termination(node, held_by.get(node.ports[0]))}",
                          elements=[port.split('.')[0]], ports=[port])
 
 

@@ -287,3 +287,23 @@ def test_a_run_that_comes_near_the_dead_centre_reports_time_and_module():
 def test_the_crank_driven_four_bar_never_reports_a_dead_centre():
     res = pipeline.run(scene(FOURBAR), t_end=math.pi, rtol=1e-8, progress=False)     # one revolution
     assert res.monitors == []
+
+
+# -- 7. unconnected ports on a frame-fixed housing ------------------------------------------------
+
+def test_a_support_on_a_frame_fixed_housing_is_listed_as_held_by_the_frame_not_as_a_free_end():
+    """A bearing's ``support`` turns with its housing: held by the frame while the anchor is
+    unconnected (frame-fixed), a free end once the anchor sits on a moving link (here crank2's
+    output, driven at 0.5 rad/s); the dyad's ``drive`` is on a moving link either way."""
+    def texts(text):
+        return {d.ports[0]: d.message.split(": ", 1)[1] for d in found(text, "unconnected_port")}
+    fixed = texts(FOURBAR)
+    for el, anchor in (("crank", "crank.a.phi"), ("rocker", "rocker.a2.phi")):
+        assert fixed[f"{el}.support"].startswith(f"held by the frame (its motion is that of {anchor}, fixed")
+    assert fixed["rocker.drive"] == "free end (effort 0)"
+    moving = texts(FOURBAR.replace("connections:", "  crank2: {type: DAN, l: 0.1, phi0: 0.0, x1: 0.7, y1: 0.0}\n"
+                                   "  motor2: {type: speed_source, value: 0.5}\nconnections:")
+                   .replace("  - [crank.b, rocker.a1]", "  - [crank.b, rocker.a1]\n  - [crank2.b, rocker.a2]\n"
+                            "  - [motor2.p, crank2.drive]"))
+    assert moving["rocker.support"] == "free end (effort 0)"
+    assert moving["crank2.support"].startswith("held by the frame (its motion is that of crank2.a.phi")

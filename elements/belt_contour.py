@@ -326,6 +326,8 @@ def read_table(path) -> Contour:
     path = Path(path)
     name = str(path)
     try:
+        if path.exists() and not path.is_file():
+            raise _err("bad_contour_table", f"{name} is not a regular file", "give the contour table's CSV file")
         size = os.path.getsize(path)
         if size > MAX_TABLE_BYTES:
             raise _err("bad_contour_table", f"{name}: the table is larger than {MAX_TABLE_BYTES // 1024} KiB",

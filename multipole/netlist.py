@@ -298,6 +298,7 @@ class _Builder:
         self.used_overrides: set = set()
         self.numbers: dict = {}
         self.extra: dict = {}
+        self.file_hashes: list = []     # (path, sha256 of the contents) of every 'file' parameter
 
     def err(self, code, message, fix="", line=None, element=""):
         where = f"{self.file}:{line}" if line else self.file
@@ -357,7 +358,8 @@ class _Builder:
                           prefer_state=prefer)
         except MultipoleError as exc:
             raise self.err(exc.code, exc.message, exc.fix) from None
-        digest = hashlib.sha256((text + repr(sorted(self.overrides.items()))).encode()).hexdigest()
+        digest = hashlib.sha256((text + repr(sorted(self.overrides.items())) + repr(self.file_hashes)).encode()
+                                ).hexdigest()
         return Scene(str(d.get("name", Path(self.file).stem)), str(d.get("description", "")), self.file, net,
                      outputs, sim, expect, bool(d.get("bench", False)), digest, out_lines, lines, types,
                      dict(reference), texts, metrics)
@@ -512,7 +514,15 @@ class _Builder:
             if not isinstance(value, str) or not value.strip() or "\0" in value:
                 raise self.err("bad_value", f"{what} must be a file name, a path relative to the netlist file",
                                "e.g. contour: wheel1.csv", line, element)
-            return str(Path(self.file).parent / value)
+            path = Path(self.file).parent / value
+            try:                          # the scene's digest (cache key) covers the data file too
+                if path.is_file():        # (a device or pipe is left to the element, which refuses it)
+                    with open(path, "rb") as fh:
+                        digest = hashlib.sha256(fh.read(MAX_FILE_BYTES + 1)).hexdigest()
+                    self.file_hashes.append((str(path), digest))
+            except OSError:
+                pass                      # the element names the file it cannot read
+            return str(path)
         if p.kind == "choice":
             if value not in p.choices:
                 raise self.err("bad_value", f"{what} must be one of {', '.join(p.choices)}, got {value!r}",

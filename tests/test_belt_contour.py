@@ -358,3 +358,24 @@ def test_table_errors_name_the_netlist_the_element_and_the_table(tmp_path):
     with pytest.raises(NetlistError) as exc:
         _winch(tmp_path, "{type: curve_drum, contour: circle.csv, side1: 0}")
     assert exc.value.code == "bad_side" and "'drum'" in str(exc.value)
+
+
+def test_a_changed_table_is_a_different_scene_for_the_model_cache(tmp_path):
+    """The scene's digest (the model cache's key) covers the contents of the table, not only the
+    netlist text: after the table changes, the run uses the new contour (lever arm 0.1 -> 0.2 m)."""
+    path = tmp_path / "c.csv"
+    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: c.csv, J: 0.01}")
+    outs = []
+    for r in (0.1, 0.2):
+        write_table(path, np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, r))
+        sc = loads(text, str(tmp_path / "winch.yaml"))
+        outs.append((sc.digest, pipeline.run(sc, progress=False, outputs=["drum.h1"]).outputs["drum.h1"][-1]))
+    assert outs[0][0] != outs[1][0]
+    assert outs[0][1] == pytest.approx(0.1, rel=1e-12) and outs[1][1] == pytest.approx(0.2, rel=1e-12)
+
+
+def test_a_device_is_not_read_as_a_table():
+    """Netlists are untrusted: a contour naming a device (endless) is refused, not read."""
+    with pytest.raises(ModelError) as exc:
+        read_table("/dev/zero")
+    assert exc.value.code == "bad_contour_table"

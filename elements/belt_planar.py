@@ -155,7 +155,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
                    reads={"xa": ("p1.x", _S("x1")), "ya": ("p1.y", _S("y1")),
                           "xb": ("p2.x", _S("x2")), "yb": ("p2.y", _S("y2"))},
                    fixed=("e1.l", "e2.l", "p1.x", "p1.y", "p1.phi", "p2.x", "p2.y", "p2.phi"),
-                   closures=[closure], sketch=[Sketch([k1, k2], ["", ""], style="slide")])
+                   closures=[closure], sketch=[Sketch([k1, k2], ["", ""], style="line")])
 
 
 @element("planar_roll", "circular band roll on a planar bearing (Ebert 4.4.4, corrected): the roll of band_roll "
@@ -224,5 +224,6 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, x, y):
                    positions={"c.x": xa, "c.y": ya, "c.phi": pa},
                    reads={"xa": ("a.x", _S("x")), "ya": ("a.y", _S("y")), "pa": ("a.phi", 0)},
                    fixed=("a.x", "a.y", "a.phi", "e1.gamma", "e2.gamma"),
-                   sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="slide"),
-                           Sketch([(xa, ya), circle[0]], ["", ""], style="link")])
+                   sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="line"),
+                           Sketch([(xa, ya), circle[0]], ["", ""], style="line"),
+                           Sketch([(xa, ya)], [""], style="point")])

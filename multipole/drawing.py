@@ -89,6 +89,8 @@ def _draw_frame(ax, drawn, k, shade, labels=True):
             ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.0, alpha=0.8, dashes=(6, 3))
         elif d.style == "point":
             ax.plot(xy[:, 0], xy[:, 1], "o", color=colour, ms=4)
+        elif d.style == "line":
+            ax.plot(xy[:, 0], xy[:, 1], "-", color=colour, lw=1.5)
         else:
             ax.plot(xy[:, 0], xy[:, 1], "-o", color=colour, lw=3.0, ms=5, mfc="white", mec=colour, mew=1.5,
                     solid_capstyle="round")

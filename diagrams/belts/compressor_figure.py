@@ -2,13 +2,15 @@
 speeds and the speed ratio against the slip-free ratio r_M/r_P.
 
 Run from the repository root: ``python diagrams/belts/compressor_figure.py`` (writes
-docs/figures/belts_compressor.png).
+docs/figures/belts_compressor.png and the drawing docs/figures/belts_compressor_drawing.png, the
+figure of ``multipole draw diagrams/belts/compressor.yaml --t-end 2.1 --at 0,2.1``).
 """
 from pathlib import Path
 
 import numpy as np
 
 from multipole import pipeline
+from multipole.drawing import mechanism_figure, sample
 from multipole.netlist import load
 from multipole.plotting import new_figure, save
 
@@ -42,5 +44,12 @@ def compressor():
     return res
 
 
+def drawing():
+    scene = load(HERE / "compressor.yaml")
+    res, drawn = sample(scene, t_end=2.1)
+    mechanism_figure(res, drawn, OUT / "belts_compressor_drawing.png", at=[0.0, 2.1], title="compressor")
+
+
 if __name__ == "__main__":
     compressor()
+    drawing()

@@ -124,7 +124,8 @@ class Sketch:
     """A piece of an element's drawing (``multipole draw``): a polyline through points ``(x, y)``
     [m], expressions in the network's local names (parameters, signals, position reads).
 
-    ``style``: ``link`` (a bar with joints at its ends), ``slide`` (a guide line), ``point``.
+    ``style``: ``link`` (a bar with joints at its ends), ``slide`` (a guide line), ``point``,
+    ``line`` (a thin solid polyline: a band span, a roll's outline).
     ``labels``: a text per point ('' for none).  ``trace``: draw the path of the last point over the
     whole run (a coupler curve)."""
 

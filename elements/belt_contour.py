@@ -44,7 +44,7 @@ import numpy as np
 import sympy as sp
 from scipy.interpolate import CubicSpline
 
-from multipole import ModelError, Param, Quantity, element
+from multipole import Diagnostic, ModelError, Param, Quantity, element, register_check
 
 from .belt import _BAND, _ROLL_QTY, _roll
 
@@ -420,7 +420,7 @@ def _curve(kind: str, sides: int, contour, J, phi0, omega0, w, sides_of, tol, mu
     for k in range(1, sides + 1):
         lever = _sym_series(a, b, nu(k, phi), False, drop)
         net.quantities[f"h{k}"] = Quantity(lambda V, e=lever: e.xreplace({s: V.param(s.name) for s in e.free_symbols}))
-    net.contour = c
+    net.contour, net.sides, net.w = c, tuple(int(s) for s in sides_of), int(w)
     return net
 
 
@@ -458,3 +458,37 @@ def curve_roll(contour, J, phi0, omega0, w, side1, side2, tol, mu, r_pin, wrap):
 def curve_drum(contour, J, phi0, omega0, w, side1, tol, mu, r_pin):
     """Curve drum [contour in m, J in kg*m^2, angles in rad]."""
     return _curve("curve_drum", 1, contour, J, phi0, omega0, w, (side1,), tol, mu, r_pin, None)
+
+
+# -- static check --------------------------------------------------------------------------------
+
+@register_check("curve_roll_side", "warning",
+                "a curve roll's contact side disagrees with its winding sense and the span end it is joined to: "
+                "the band would leave the contour on the other side, and the lever arms would be that side's")
+def curve_roll_side(ctx):
+    """At a span's P1 end the band leaves the contact along the span's direction, at its P2 end
+    against it; with the port's winding sense w_k (w at e1, -w at e2) the consistent side is -w_k
+    at a P1 end and +w_k at a P2 end (``docs/belts.md``, curve rolls)."""
+    if ctx.scene is None:
+        return
+    ends = {prim: ext.rsplit(".", 1)[0] for ext, prim in ctx.flat.external_ports.items()
+            if ext.endswith(".l") and ctx.flat.bundles.get(ext.rsplit(".", 1)[0]) == "band"}
+    for node in ctx.flat.nodes:
+        refs = [ends[p] for p in node.ports if p in ends]
+        if node.origin != "connection" or len(refs) != 2:
+            continue
+        for roll_ref, span_ref in (refs, refs[::-1]):
+            (roll, port), (span, end) = roll_ref.split("."), span_ref.split(".")
+            net = ctx.scene.network.children.get(roll)
+            if ctx.flat.elements.get(span) != "band" or not hasattr(net, "sides"):
+                continue
+            k = int(port[1:])
+            wk = net.w if k == 1 else -net.w
+            want = -wk if end == "e1" else wk
+            if net.sides[k - 1] != want:
+                yield Diagnostic("curve_roll_side",
+                                 f"{roll}.{port} is joined to the {'P1' if end == 'e1' else 'P2'} end of {span}: "
+                                 f"with w = {net.w:+d} the band leaves the contour along that span only with "
+                                 f"side{k} = {want:+d}, not {net.sides[k - 1]:+d} (the other side's lever arms)",
+                                 elements=[roll, span],
+                                 fix=f"set side{k}: {want} on {roll}, or reverse its winding sense w")

@@ -379,3 +379,19 @@ def test_a_device_is_not_read_as_a_table():
     with pytest.raises(ModelError) as exc:
         read_table("/dev/zero")
     assert exc.value.code == "bad_contour_table"
+
+
+def contour_triggers() -> dict:
+    """The curve roll's static check's triggering netlist, for tests/test_diagnostics_text.py."""
+    return {"curve_roll_side": (lambda: load(BELTS / "toothed_belt.yaml", {"wheel1.side2": -1}),
+                                ["wheel1.e2", "P1 end of top", "side2 = +1"])}
+
+
+def test_an_inconsistent_side_is_reported_and_the_scene_is_consistent():
+    """The toothed belt's four contacts follow the rule (side = -w_k at a P1 end, +w_k at a P2 end);
+    flipping one side, or the winding sense (both ports then disagree), is reported."""
+    codes = lambda sc: [d for d in pipeline.check(sc).diagnostics if d.code == "curve_roll_side"]
+    assert codes(load(BELTS / "toothed_belt.yaml")) == []
+    found = codes(contour_triggers()["curve_roll_side"][0]())
+    assert [d.elements for d in found] == [["wheel1", "top"]]
+    assert len(codes(load(BELTS / "toothed_belt.yaml", {"wheel2.w": -1}))) == 2

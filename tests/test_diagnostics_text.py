@@ -154,6 +154,7 @@ TRIGGERS = {
     "unconnected_port": (_text(OPEN_GROUND), ["supply.n"]),
     "degrees_of_freedom": (_file(DIAGRAMS / "weber" / "dc_motor.yaml"), ["motor.inertia.p"]),
     **linkage_triggers(),
+    **__import__("test_belt_contour").contour_triggers(),     # the curve roll's side check
 }
 
 #: codes no netlist can reach today; each is rendered from a finding planted on a real scene instead

@@ -158,12 +158,12 @@ def test_circle_contour_reproduces_band_roll_and_drum_exactly(tmp_path):
     run as drum and band_roll, output for output, to rounding."""
     write_table(tmp_path / "circle.csv", np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, 0.1))
     ref = _winch(tmp_path, "{type: drum, r: 0.1, J: 0.01}")
-    got = _winch(tmp_path, "{type: curve_drum, contour: circle.csv, J: 0.01}")
+    got = _winch(tmp_path, "{type: curve_drum, contour: circle.csv, J: 0.01, side1: -1}")
     for name, values in ref.outputs.items():
         np.testing.assert_allclose(got.outputs[name], values, rtol=1e-12, atol=1e-15, err_msg=name)
     text = (BELTS / "belt_drive.yaml").read_text()
-    curved = text.replace("type: band_roll, r: 0.05,", "type: curve_roll, contour: c05.csv,").replace(
-        "type: band_roll, r: 0.1,", "type: curve_roll, contour: c10.csv,")
+    curved = text.replace("type: band_roll, r: 0.05,", "type: curve_roll, contour: c05.csv, side1: -1, side2: -1,"
+                          ).replace("type: band_roll, r: 0.1,", "type: curve_roll, contour: c10.csv, side1: -1, side2: -1,")
     assert curved.count("curve_roll") == 2
     for name, r in (("c05.csv", 0.05), ("c10.csv", 0.1)):
         write_table(tmp_path / name, np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, r))
@@ -364,7 +364,7 @@ def test_a_changed_table_is_a_different_scene_for_the_model_cache(tmp_path):
     """The scene's digest (the model cache's key) covers the contents of the table, not only the
     netlist text: after the table changes, the run uses the new contour (lever arm 0.1 -> 0.2 m)."""
     path = tmp_path / "c.csv"
-    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: c.csv, J: 0.01}")
+    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: c.csv, J: 0.01, side1: -1}")
     outs = []
     for r in (0.1, 0.2):
         write_table(path, np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, r))

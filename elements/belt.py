@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import C, I, R, TF, ModelError, Network, Param, Quantity, Se, Sf, Tap, element, junction_a, junction_b
+from multipole import C, I, R, TF, ModelError, Monitor, Network, Param, Quantity, Se, Sf, Tap, element, junction_a, junction_b
 
 _S = sp.Symbol
 _BAND = "band bundle (l: tension [N] / material speed [m/s], wound length [m]; gamma: inclination [rad])"
@@ -83,20 +83,26 @@ def band(EA, cd, l, l0, dir, gamma):
                    fixed=("e1.l", "e2.l", "p1", "p2"))
 
 
-def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap, contact=None, reads=None) -> Network:
+def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap, contact=None, reads=None,
+          mu_c=None, stored=None) -> Network:
     """A roll with ``sides`` band ports (2: roll, 1: drum): no-slip winding, inertia J.
 
     ``contact(k)``: (lever arm [m], wound length [m]) at band port k as expressions of the local
     names (the roll angle ``phi``, ``reads``); default: the circle of radius ``r`` (a curve roll,
-    ``elements/belt_contour.py``, gives its contour's and leaves ``r`` None)."""
+    ``elements/belt_contour.py``, gives its contour's and leaves ``r`` None).  Run-time monitors
+    (:func:`_monitors`): ``mu_c`` the capstan limit, ``stored`` a drum's rope, a ``wrap`` that is
+    not a constant its lift-off."""
     if w not in (1, -1):
         raise ModelError("bad_winding", f"{kind}: w = {w!r} must be +1 or -1",
                          "+1: a positive rotation pays band out at e1 (and winds it in at e2)")
     phi, ws = _S("phi"), int(w)
     F1, F2 = _S("F1"), _S("F2")
+    # the wrap angle: a parameter, or an expression of the roll's local names (a wrap that changes)
+    moving_wrap = sides == 2 and not isinstance(wrap, (int, float, sp.Number))
+    beta = wrap if moving_wrap else _S("wrap")
     # the resultant of the two band forces on the roll: |F1 e1 + F2 e2| with the angle between the
     # span directions pi - wrap (parallel spans for wrap = pi: F1 + F2); a drum carries F1 only
-    radial_load = sp.Abs(F1) if sides == 1 else sp.sqrt(F1 ** 2 + F2 ** 2 - 2 * F1 * F2 * sp.cos(_S("wrap")))
+    radial_load = sp.Abs(F1) if sides == 1 else sp.sqrt(F1 ** 2 + F2 ** 2 - 2 * F1 * F2 * sp.cos(beta))
     names = ["drive", "J", "tap"] + [f"t{k}" for k in range(1, sides + 1)] + ["fric"]
     children = {"J": I(J=_S("J"), dom="rotational", p0=_S("J") * _S("omega0")), "tap": Tap("rotational", q0=_S("phi0"))}
     connections = [["W.J", "J.p"], ["W.tap", "tap.p"]]
@@ -118,8 +124,9 @@ def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap, contact
         fixed.append(f"e{k}.gamma")
     params = ({} if r is None else {"r": r}) | {"J": J, "phi0": phi0, "omega0": omega0, "w": ws, "mu": mu,
                                                 "r_pin": r_pin}
-    if sides == 2:
+    if sides == 2 and not moving_wrap:
         params["wrap"] = wrap
+    monitors = _monitors(sides, beta if sides == 2 else None, moving_wrap, mu_c, stored, positions.get("e1.l"), params)
     q = {"phi": Quantity(lambda V: V.x("tap.q")), "omega": Quantity(lambda V: V.f("W.drive")),
          "F1": Quantity(lambda V: V.e("T1.a")),
          "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0))}
@@ -128,7 +135,35 @@ def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap, contact
     signals = {"phi": "tap.q"} | {f"F{k}": f"T{k}.a.e" for k in range(1, sides + 1)}
     return Network(kind, children, connections, ports, params, q, signals=signals,
                    bundles={f"e{k}": "band" for k in range(1, sides + 1)}, positions=positions, fixed=fixed,
-                   reads=reads)
+                   reads=reads, monitors=monitors)
+
+
+def _monitors(sides: int, beta, moving_wrap: bool, mu_c, stored, paid_out, params: dict) -> list:
+    """The run-time monitors of a roll (docs/belts.md, "Monitors"); adds their parameters to ``params``.
+
+    * ``band_lifts_off``: the wrap angle ``beta`` [rad] falls to 0 (only a wrap that is an
+      expression of the motion can: a constant wrap is checked at load time);
+    * ``capstan_limit`` (``mu_c`` given): one band tension exceeds e^(mu_c*wrap) times the other, so
+      a real band would slip on the roll (Euler-Eytelwein); the no-slip model goes on;
+    * ``drum_paid_out`` (``stored`` given, a drum): the wound-out length at e1 [m] passes the rope
+      stored on the drum at t = 0: the rope end would tear off its anchor; the run stops."""
+    out = []
+    F1, F2 = _S("F1"), _S("F2")
+    if moving_wrap:
+        out.append(Monitor(beta, "band_lifts_off", "the wrap angle fell to 0: the band lifts off the roll"))
+    if sides == 2 and mu_c is not None:
+        params["mu_c"] = mu_c
+        grip = sp.exp(_S("mu_c") * beta)
+        for tight, slack, k in ((F1, F2, 1), (F2, F1, 2)):
+            out.append(Monitor(grip * slack - tight, "capstan_limit",
+                               f"the band tension at e{k} exceeds e^(mu_c*wrap) times the other side's: "
+                               "a real band would slip here (the model keeps no-slip)"))
+    if sides == 1 and stored is not None:
+        params["stored"] = stored
+        out.append(Monitor(_S("stored") - paid_out, "drum_paid_out",
+                           "paid out all the rope stored on it: the rope end would tear off its anchor", stop=True,
+                           fix="store more rope on the drum (parameter stored) or pay out less"))
+    return out
 
 
 _ROLL_PARAMS = [Param("r", "m", "roll radius (to the band's neutral layer)", 0.05, positive=True),
@@ -148,17 +183,22 @@ _ROLL_QTY = {"phi": "rad: roll angle", "omega": "rad/s: angular velocity",
          {"e1": f"band port 1 ({_BAND})", "e2": f"band port 2 ({_BAND})",
           "drive": "1-D rotational port on the roll (angular velocity [rad/s], torque on the roll [N*m])"},
          _ROLL_PARAMS + [Param("wrap", "rad", "wrap angle (angle between the spans' directions: pi - wrap); "
-                               "the radial load is |F1 e1 + F2 e2|", 3.141592653589793, positive=True)],
+                               "the radial load is |F1 e1 + F2 e2|", 3.141592653589793, positive=True),
+                         Param("mu_c", "-", "band-roll contact friction for the capstan monitor: the run reports "
+                               "capstan_limit when one tension exceeds e^(mu_c*wrap) times the other; None: not "
+                               "monitored", None, nonnegative=True)],
          _ROLL_QTY | {"F2": "N: band tension at e2"})
-def band_roll(r, J, phi0, omega0, w, mu, r_pin, wrap):
+def band_roll(r, J, phi0, omega0, w, mu, r_pin, wrap, mu_c):
     """Circular roll [r, r_pin in m, J in kg*m^2, angles in rad]."""
-    return _roll("band_roll", 2, r, J, phi0, omega0, w, mu, r_pin, wrap)
+    return _roll("band_roll", 2, r, J, phi0, omega0, w, mu, r_pin, wrap, mu_c=mu_c)
 
 
 @element("drum", "band drum (Ebert 4.4.4 derived): a circular roll with one band end fixed on it; winds band "
          "in or pays it out at e1", {"e1": f"band port ({_BAND})",
                                       "drive": "1-D rotational port on the drum"},
-         _ROLL_PARAMS, _ROLL_QTY)
-def drum(r, J, phi0, omega0, w, mu, r_pin):
+         _ROLL_PARAMS + [Param("stored", "m", "rope stored on the drum at t = 0 (wound-out length it can pay out "
+                               "at e1); paying out more stops the run with drum_paid_out; None: not monitored", None,
+                               nonnegative=True)], _ROLL_QTY)
+def drum(r, J, phi0, omega0, w, mu, r_pin, stored):
     """Band drum [r in m, J in kg*m^2, angles in rad]."""
-    return _roll("drum", 1, r, J, phi0, omega0, w, mu, r_pin, None)
+    return _roll("drum", 1, r, J, phi0, omega0, w, mu, r_pin, None, stored=stored)

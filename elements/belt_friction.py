@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import I, R, TF, ModelError, Network, Param, Quantity, Se, Tap, element, junction_a, junction_b
+from multipole import I, R, TF, ModelError, Monitor, Network, Param, Quantity, Se, Tap, element, junction_a, junction_b
 
 _S = sp.Symbol
 _BAND = "band bundle (l: tension [N] / material speed [m/s], wound length [m]; gamma: inclination [rad])"
@@ -61,6 +61,7 @@ def _limit(mu, beta):
           "speed": "m/s: belt speed u on the wrap (along the pulley surface, positive with omega)",
           "slip": "m/s: relative speed of the belt on the pulley u - r*omega (|slip| < v_s: sticking)",
           "grip": "-: friction force over its limit, F_c/F_lim in [-1, 1] (+-1: slipping)",
+          "slipping": "-: 1 while the contact slips (|slip| >= v_s), 0 while it sticks",
           "friction": "N: friction force F_c of the pulley on the belt arc, against the slip",
           "limit": "N: friction force limit F_lim = (F1 + F2) tanh(mu*wrap/2)",
           "torque": "N*m: torque of the belt on the pulley r*F_c",
@@ -97,9 +98,14 @@ def belt_pulley(r, J, mu, wrap, m, v_s, phi0, omega0, w):
          "friction": Quantity(lambda V: V.e("fr.p")),
          "limit": Quantity(lambda V: (V.e("A.e1") + V.e("A.e2")) * _limit(V.param("mu"), V.param("wrap"))),
          "grip": Quantity(lambda V: sp.Max(-1, sp.Min(1, V.f("fr.p") / V.param("v_s")))),
+         "slipping": Quantity(lambda V: sp.Heaviside(sp.Abs(V.f("fr.p")) - V.param("v_s"), 1)),
          "torque": Quantity(lambda V: V.param("r") * V.e("fr.p")),
          "F1": Quantity(lambda V: V.e("A.e1")), "F2": Quantity(lambda V: V.e("A.e2"))}
+    # reported in Result.monitors each time the contact starts to slip (|slip| reaches v_s)
+    slips = Monitor(1.01 - sp.Abs(_S("slip")) / _S("v_s"), "belt_slips",
+                    "the belt starts slipping on the pulley: the tension ratio reached exp(mu*wrap)")
     return Network("belt_pulley", children, connections, ports, params, q,
-                   signals={"s": "s.q", "F1": "A.e1.e", "F2": "A.e2.e"},
+                   signals={"s": "s.q", "F1": "A.e1.e", "F2": "A.e2.e", "slip": "fr.p.f"},
                    bundles={"e1": "band", "e2": "band"},
-                   positions={"e1.l": ws * s, "e2.l": -ws * s}, fixed=("e1.gamma", "e2.gamma"))
+                   positions={"e1.l": ws * s, "e2.l": -ws * s}, fixed=("e1.gamma", "e2.gamma"),
+                   monitors=[slips])

@@ -490,9 +490,12 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
     available, units = _available(analysis)
     if closed:
         _use_closed(blocks, available, closed)
+    # a monitor may read a port variable the analysis merged into another (an alias): read that one
+    aliased = {v: r if sign == 1 else -r for v, (r, sign) in analysis.aliases.items() if v != r} \
+        if analysis.flat.monitors else {}
     eq = Equations(name, states, [der(s.symbol) for s in states], dict(analysis.flat.inputs),
                    analysis.flat.param_values(), blocks, available, diagnostics, units=units, analysis=analysis,
-                   monitors=list(analysis.flat.monitors))
+                   monitors=[(sp.sympify(e).xreplace(aliased), m, o) for e, m, o in analysis.flat.monitors])
     _loops_at_start(eq)
     if analysis.demoted:
         report = _consistent_start(eq, analysis.demoted)

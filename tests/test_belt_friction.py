@@ -99,7 +99,7 @@ def test_slack_onset_of_the_no_slip_drive_at_the_predicted_load():
                          "type: band_roll, r: r1, J: 1.0e-3,")
             .replace("type: belt_pulley, r: r2, J: J2, mu: mu, wrap: pi + 2*asin((r2 - r1)/a),",
                      "type: band_roll, r: r2, J: J2,")
-            .replace("p1.slip, p2.slip, p1.grip, p2.grip", ""))
+            .replace("p1.slip, p2.slip, p1.grip, p2.grip, ", ""))
     assert "belt_pulley" not in text
     res = pipeline.run(scene(text, {"rate": 2.0}), t_end=25.0, progress=False)
     d0 = L - L0
@@ -122,7 +122,8 @@ def test_drive_slips_exactly_when_the_tension_ratio_reaches_exp_mu_wrap():
     belt arc's inertia) while the slip speed grows and the driven pulley is pulled back."""
     res = pipeline.run(scene(TEXT), progress=False,
                        outputs=["p1.omega", "p2.omega", "tight.F", "slack.F", "p1.slip", "p2.slip", "p1.grip",
-                                "p2.grip", "p1.F1", "p1.F2", "p1.limit", "p1.friction", "p1.speed", "p1.phi", "p1.torque"])
+                                "p2.grip", "p1.F1", "p1.F2", "p1.limit", "p1.friction", "p1.speed", "p1.phi", "p1.torque",
+                                "p1.slipping", "p2.slipping"])
     limit = exp(MU * WRAP1)
     t_slip, Ft, Fs = _slip_time(10.0, limit)
     slips = [(t, what) for t, what in res.events if "p1.fr" in what]
@@ -131,8 +132,14 @@ def test_drive_slips_exactly_when_the_tension_ratio_reaches_exp_mu_wrap():
     # 2.5e-3 N, which moves the onset by +5.7e-6 s per 1e-4 m/s of v_s, benchmarks/belt_bench.py), the
     # belt arc's and the driven pulley's inertia and the decayed start transient; measured +3.6e-6
     assert slips[0][0] == pytest.approx(t_slip, rel=1e-5)
+    # the user-facing report: one belt_slips finding on p1, once |slip| passes 1.01 v_s (the slip speed
+    # grows from v_s within microseconds)
+    assert [(who, code) for _t, who, code, _text in res.monitors] == [("p1", "belt_slips")]
+    assert 0 < res.monitors[0][0] - slips[0][0] < 1e-3
     t = res.t
     before, after = t < slips[0][0] - 1e-3, t > slips[0][0] + 0.05
+    assert np.all(res.outputs["p1.slipping"][before] == 0) and np.all(res.outputs["p1.slipping"][after] == 1)
+    assert np.all(res.outputs["p2.slipping"] == 0)
     ratio = res.outputs["tight.F"] / res.outputs["slack.F"]
     assert np.all(ratio[before] < limit) and np.all(abs(res.outputs["p1.grip"][before]) < 1)
     assert np.all(abs(res.outputs["p1.slip"][before]) < V_S)
@@ -170,6 +177,11 @@ def test_slip_and_stick_switching_keeps_the_step_size():
     assert not calm.events
     events = [t for t, what in res.events if "p1.fr" in what]
     assert len(events) >= 10 and len(events) == len(res.events)
+    # slip onsets are every other switch (stick -> slip -> stick); each that passes 1.01 v_s is reported
+    # once as belt_slips, just after its event (a few slip only briefly and stick again)
+    found = [t for t, _who, code, _text in res.monitors if code == "belt_slips"]
+    assert 3 <= len(found) <= len(events) // 2 and len(found) == len(res.monitors)
+    assert all(min(t - e for e in events if e <= t) < 1e-3 for t in found)
     assert res.stats["steps"] <= calm.stats["steps"] + 150 * len(events)
     assert res.stats["nfev"] <= calm.stats["nfev"] + 1000 * len(events)
     assert np.all(res.outputs["slack.F"] > 0) and np.all(res.outputs["p2.omega"] > 0)

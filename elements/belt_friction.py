@@ -26,7 +26,8 @@ arc's inertia ``m u'``).  Why not an exact rigid stick: in stick the belt's spee
 pulley's, in slip it is fixed by the ratio condition on the two spans' tensions (a constraint on
 the neighbours' states); the kernel keeps one causal structure for a whole run, so the stick
 phase is the steep viscous branch instead; its error (the creep, at most ``v_s``) is measured in
-``docs/belts.md``.
+``docs/belts.md``.  Each onset of slip is reported as the run-time monitor ``belt_slips``
+(``Result.monitors``: time, pulley, code).
 """
 from __future__ import annotations
 
@@ -41,6 +42,11 @@ _BAND = "band bundle (l: tension [N] / material speed [m/s], wound length [m]; g
 def _limit(mu, beta):
     """``tanh(mu beta / 2)``: the friction force limit per unit of ``F1 + F2`` (Euler-Eytelwein)."""
     return sp.tanh(mu * beta / 2)
+
+
+def _grip(slip, v_s):
+    """``max(-1, min(1, slip/v_s))``: the friction force over its limit (+-1: slipping)."""
+    return sp.Max(-1, sp.Min(1, slip / v_s))
 
 
 @element("belt_pulley", "friction belt pulley (Euler-Eytelwein): belt arc of mass m on a pulley of inertia J, "
@@ -81,7 +87,7 @@ def belt_pulley(r, J, mu, wrap, m, v_s, phi0, omega0, w):
         "s": Tap("translational"),
         # relative speed: f_fr = u - r*omega, one force F_c on arc and pulley surface
         "D": junction_a(["x", "y", "fr"], "translational", [1, -1, -1]),
-        "fr": R(law=F_lim * sp.Max(-1, sp.Min(1, slip / _S("v_s"))), dom="translational"),
+        "fr": R(law=F_lim * _grip(slip, _S("v_s")), dom="translational"),
         "T": TF(_S("r"), "translational", "rotational"),
         # pulley: common omega
         "W": junction_b(["drive", "J", "tap", "t"], "rotational"),
@@ -97,11 +103,12 @@ def belt_pulley(r, J, mu, wrap, m, v_s, phi0, omega0, w):
          "speed": Quantity(lambda V: V.f("A.arc")), "slip": Quantity(lambda V: V.f("fr.p")),
          "friction": Quantity(lambda V: V.e("fr.p")),
          "limit": Quantity(lambda V: (V.e("A.e1") + V.e("A.e2")) * _limit(V.param("mu"), V.param("wrap"))),
-         "grip": Quantity(lambda V: sp.Max(-1, sp.Min(1, V.f("fr.p") / V.param("v_s")))),
+         "grip": Quantity(lambda V: _grip(V.f("fr.p"), V.param("v_s"))),
          "slipping": Quantity(lambda V: sp.Heaviside(sp.Abs(V.f("fr.p")) - V.param("v_s"), 1)),
          "torque": Quantity(lambda V: V.param("r") * V.e("fr.p")),
          "F1": Quantity(lambda V: V.e("A.e1")), "F2": Quantity(lambda V: V.e("A.e2"))}
-    # reported in Result.monitors each time the contact starts to slip (|slip| reaches v_s)
+    # reported in Result.monitors each time the contact starts to slip: where |slip| passes 1.01 v_s,
+    # just after the switch (a monitor crossing zero at the switch's own root makes the driver chatter)
     slips = Monitor(1.01 - sp.Abs(_S("slip")) / _S("v_s"), "belt_slips",
                     "the belt starts slipping on the pulley: the tension ratio reached exp(mu*wrap)")
     return Network("belt_pulley", children, connections, ports, params, q,

@@ -37,11 +37,12 @@ import math
 
 import sympy as sp
 
-from multipole import (MTF, C, Closure, I, Network, Param, Quantity, R, Se, Sketch, Tap, element, junction_a,
-                       junction_b)
+from multipole import (MTF, C, Closure, Diagnostic, I, Network, Param, Quantity, R, Se, Sketch, Tap, element,
+                       junction_a, junction_b, register_check)
 from multipole.errors import ModelError
 
 from .belt import _BAND, _roll
+from .belt_checks import _value, band_graph
 from .linkage import _zero
 
 _S = sp.Symbol
@@ -162,7 +163,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
          "(no-slip winding at radius r, inertia J) whose axis is the planar port a; the spans pull its centre "
          "through the port c",
          {"a": f"bearing ({_PLANAR}): the axis, e.g. a lever's output; frame-fixed at (x, y) if not connected; "
-               "the bearing is frictionless (no torque on the housing)",
+               "its phi component takes the pin friction torque (none when mu = 0)",
           "c": f"centre of the roll seen by the spans ({_PLANAR}): join it to the spans' p1/p2 ports; it moves "
                "with a, and the span forces on it act on a",
           "e1": f"band port 1 ({_BAND}): a span with wrap sense s = w there",
@@ -177,14 +178,19 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
           Param("m", "kg", "mass of the roll on its axis (0: carried by the bearing's body only)", 0.0,
                 nonnegative=True),
           Param("gx", "m/s^2", "gravity, x component", 0.0), Param("gy", "m/s^2", "gravity, y component", -9.81),
+          Param("mu", "-", "bearing friction coefficient: torque mu*r_pin*|span forces on the axis| against the "
+                "rotation relative to the housing", 0.0, nonnegative=True),
+          Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True),
           Param("x", "m", "frame position x of the axis when a is not connected", 0.0),
           Param("y", "m", "frame position y of the axis when a is not connected", 0.0)],
          {"phi": "rad: roll angle", "omega": "rad/s: angular velocity", "F1": "N: band tension at e1",
           "F2": "N: band tension at e2", "lr1": "m: band wound off into the span at e1, "
           "w r [(phi - phi0) - (gamma1 - gamma1(0))]", "lr2": "m: band wound off at e2, "
           "-w r [(phi - phi0) - (gamma2 - gamma2(0))]", "Fx": "N: x force of the spans on the axis",
-          "Fy": "N: y force of the spans on the axis", "x": "m: x of the axis", "y": "m: y of the axis"})
-def planar_roll(r, J, phi0, omega0, w, m, gx, gy, x, y):
+          "Fy": "N: y force of the spans on the axis", "x": "m: x of the axis", "y": "m: y of the axis",
+          "friction": "N*m: bearing friction torque (taken from the roll, positive when it turns faster than "
+                      "its housing)"})
+def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, x, y):
     """Circular roll on a planar bearing [r in m, J in kg*m^2, angles in rad, m in kg]."""
     # the 1-D roll with its parameters bound to this element's (a scene's expression like
     # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense)
@@ -193,6 +199,17 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, x, y):
     connections, ports = [], {"drive": "R.drive", "e1.l": "R.e1.l", "e2.l": "R.e2.l", "a.phi": "H.a",
                               "c.phi": "H.c"}
     children["H"] = junction_b(["a", "c"], "rotational")     # the housing angle, handed from a to c
+    signals = {"rphi": "R.tap.q"}
+    if not _zero(mu):
+        # pin friction between the roll and its housing, loaded by the span forces on the axis
+        children["H"] = junction_b(["a", "c", "f"], "rotational")
+        children["D"] = junction_b(["o", "r", "f"], "rotational")
+        children["F"] = junction_a(["a", "b", "x"], "rotational", [1, -1, -1])
+        children["fric"] = R(law=_S("mu") * _S("r_pin") * sp.sqrt(_S("Fcx") ** 2 + _S("Fcy") ** 2) * sp.sign(_S("f")),
+                             dom="rotational")
+        connections += [["D.r", "R.drive"], ["D.f", "F.a"], ["H.f", "F.b"], ["F.x", "fric.p"]]
+        ports["drive"] = "D.o"
+        signals.update({"Fcx": "xJ.c.e", "Fcy": "yJ.c.e"})
     for axis in "xy":
         names = ["a", "c"] + ([] if _zero(m) else ["m", "g"])
         children[f"{axis}J"] = junction_b(names, "translational")
@@ -209,17 +226,18 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, x, y):
         ports[f"e{k}.gamma"] = f"G{k}.o"
     xa, ya, pa = _S("xa"), _S("ya"), _S("pa")
     params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": int(w) if w in (1, -1) else w, "m": m,
-              "gx": gx, "gy": gy, "x": x, "y": y}
+              "gx": gx, "gy": gy, "mu": mu, "r_pin": r_pin, "x": x, "y": y}
     q = {"phi": Quantity(lambda V: V.x("R.tap.q")), "omega": Quantity(lambda V: V.f("R.drive")),
          "F1": Quantity(lambda V: V.e("R.T1.a")), "F2": Quantity(lambda V: V.e("R.T2.a")),
          "lr1": Quantity(lambda V: V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap1.q"))),
          "lr2": Quantity(lambda V: -V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap2.q"))),
          "Fx": Quantity(lambda V: V.e("xJ.c")), "Fy": Quantity(lambda V: V.e("yJ.c")),
-         "x": Quantity(lambda V: V.param("xa")), "y": Quantity(lambda V: V.param("ya"))}
+         "x": Quantity(lambda V: V.param("xa")), "y": Quantity(lambda V: V.param("ya")),
+         "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0))}
     ph = _S("rphi")
     circle = [(xa + _S("r") * sp.cos(ph + 2 * math.pi * k / _CIRCLE), ya + _S("r") * sp.sin(ph + 2 * math.pi * k / _CIRCLE))
               for k in range(_CIRCLE + 1)]
-    return Network("planar_roll", children, connections, ports, params, q, signals={"rphi": "R.tap.q"},
+    return Network("planar_roll", children, connections, ports, params, q, signals=signals,
                    bundles={"a": "planar", "c": "planar", "e1": "band", "e2": "band"},
                    positions={"c.x": xa, "c.y": ya, "c.phi": pa},
                    reads={"xa": ("a.x", _S("x")), "ya": ("a.y", _S("y")), "pa": ("a.phi", 0)},
@@ -227,3 +245,32 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, x, y):
                    sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="line"),
                            Sketch([(xa, ya), circle[0]], ["", ""], style="line"),
                            Sketch([(xa, ya)], [""], style="point")])
+
+
+@register_check("planar_band_roll", "error",
+                "a planar_band joined to a planar_roll must be given that roll's radius and wrap sense (r1 = r, "
+                "s1 = w at the roll's e1, -w at its e2) and its p port must be joined to the roll's centre c")
+def planar_band_roll(ctx):
+    kinds, ports = ctx.flat.elements, ctx.flat.external_ports
+    node_of = {p: k for k, node in enumerate(ctx.flat.nodes) for p in node.ports}
+    for a, b, data in band_graph(ctx).edges(data=True):
+        ends = dict(p.rsplit(".", 1) for p in data["ports"])
+        if {kinds.get(a), kinds.get(b)} != {"planar_band", "planar_roll"}:
+            continue
+        span, roll = (a, b) if kinds.get(a) == "planar_band" else (b, a)
+        k, j = ends[span][-1], ends[roll][-1]            # the span's end 1|2, the roll's port 1|2
+        r, w, rk, sk = _value(ctx, roll, "r"), _value(ctx, roll, "w"), _value(ctx, span, f"r{k}"), \
+            _value(ctx, span, f"s{k}")
+        problems = []
+        if None not in (r, rk) and abs(r - rk) > 1e-12 * max(r, 1e-300):
+            problems.append(f"r{k} = {rk:g} m, the roll's r = {r:g} m")
+        if None not in (w, sk) and sk != (w if j == "1" else -w):
+            problems.append(f"s{k} = {sk:+g}, the roll's w = {w:+g} at its e{j} asks for {w if j == '1' else -w:+g}")
+        centre, end = ports.get(f"{roll}.c.x"), ports.get(f"{span}.p{k}.x")
+        if centre and end and node_of.get(centre, "c") != node_of.get(end, "e"):
+            problems.append(f"{span}.p{k} is not joined to {roll}.c (the span would pull another point)")
+        if problems:
+            yield Diagnostic("planar_band_roll", f"{span}.e{k} runs onto {roll}.e{j}, but " + "; ".join(problems),
+                             elements=[span, roll],
+                             fix=f"give {span} the roll's radius r{k} and wrap sense s{k} (w at e1, -w at e2) and "
+                                 f"join {span}.p{k} with {roll}.c")

@@ -172,19 +172,24 @@ def test_tensioner_tension_against_the_static_moment_balance():
     assert o["roll.Fy"] == pytest.approx(F * (t_r - t_l)[1], rel=1e-6)
 
 
-def test_free_motion_of_the_lever_conserves_energy():
-    """No damping: kinetic energies of lever and roll + spring energy + band strain energies
-    EA delta^2/(2 l_x) + the strain energy carried across the band ends with the material,
-    integral of F^2/(2 EA) dl_x (the wrapped band is inextensible, see docs/belts.md), is constant.
-    The last term is integrated here from the sampled run (cubic spline of l_x, Simpson): its
-    quadrature error falls as dt_out^4 (5e-7 J at dt_out = 1e-4 s, measured)."""
-    res = pipeline.run(scene(TENSIONER, {"dl": 0.0, "cd": 0.0, "x0": -0.1}), progress=False,
+@pytest.mark.parametrize("m", [0.0, 0.3])
+def test_free_motion_of_the_lever_conserves_energy(m):
+    """No damping: kinetic energies of lever and roll (its mass m on the lever tip, in gravity) +
+    spring energy + band strain energies EA delta^2/(2 l_x) + the strain energy carried across the
+    band ends with the material, integral of F^2/(2 EA) dl_x (the wrapped band is inextensible, see
+    docs/belts.md), is constant.  The last term is integrated here from the sampled run (cubic
+    spline of l_x, Simpson): its quadrature error falls as dt_out^4 (5e-7 J at dt_out = 1e-4 s,
+    measured; 4e-11 relative at the 2.5e-5 s used)."""
+    text = TENSIONER.replace("roll: {type: planar_roll, r: 0.03, J: 1.0e-4}",
+                             f"roll: {{type: planar_roll, r: 0.03, J: 1.0e-4, m: {m}}}")
+    res = pipeline.run(scene(text, {"dl": 0.0, "cd": 0.0, "x0": -0.1}), progress=False,
                        rtol=1e-12, atol=1e-14, t_end=0.2, dt_out=2.5e-5)
     o, EA = res.outputs, 2.0e4
     assert min(o["left.F"].min(), o["right.F"].min()) > 100        # stays taut (no switching)
     assert np.ptp(o["lever.phi"]) > 0.05 and np.ptp(o["roll.omega"]) > 10   # the lever swings, the roll turns
     energy = 0.5 * J_LEVER * o["lever.omega"] ** 2 + 0.5 * J_ROLL * o["roll.omega"] ** 2 \
-        + 0.5 * K_SPRING * o["spring.deflection"] ** 2
+        + 0.5 * K_SPRING * o["spring.deflection"] ** 2 \
+        + 0.5 * m * (L_LEVER * o["lever.omega"]) ** 2 + m * 9.81 * o["roll.y"]
     for span in ("left", "right"):
         lx = o[f"{span}.free"]
         energy = energy + EA * o[f"{span}.stretch"] ** 2 / (2 * lx)
@@ -200,16 +205,19 @@ def _power(vals, path, ports):
     return sum(vals[f"{path}.{p}.e"] * vals[f"{path}.{p}.f"] for p in ports)
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_power_balance_of_span_and_roll_at_random_states(seed):
+@pytest.mark.parametrize("seed, mu", [(0, 0.0), (1, 0.0), (2, 0.3), (3, 0.3)])
+def test_power_balance_of_span_and_roll_at_random_states(seed, mu):
     """Tensioner model at random states: the lever angle and speed give the roll centre C and its
     velocity v_C = l omega e_perp; the span's stretch rate is t . (v_2 - v_1) - s r omega_roll
     (tangent directions constructed here); the tension F = max(0, EA delta/l_x + cd delta'/l_x)
     (delta > 0, l_x = l_B - delta); the sum of each span's port powers is F delta' with no power at
-    its gamma ports; the sum of the roll's port powers is d/dt J omega^2/2."""
+    its gamma ports; the sum of the roll's port powers is d/dt J omega^2/2 plus, with pin friction,
+    the loss mu r_pin |F_r t_r - F_l t_l| |omega_roll - omega_lever| (the housing turns with the lever)."""
     rng = np.random.default_rng(seed)
-    outs = ["left.rate", "right.rate", "roll.phi", "roll.F1", "roll.F2"]
-    model = pipeline.model(scene(TENSIONER), outs, prune=False)
+    outs = ["left.rate", "right.rate", "roll.phi", "roll.F1", "roll.F2", "roll.friction"]
+    text = TENSIONER.replace("roll: {type: planar_roll, r: 0.03, J: 1.0e-4}",
+                             f"roll: {{type: planar_roll, r: 0.03, J: 1.0e-4, mu: {mu}, r_pin: 0.005}}")
+    model = pipeline.model(scene(text), outs, prune=False)
     names = list(model.state_names)
     EA, cd = 2.0e4, 5.0
     for _trial in range(3):
@@ -244,11 +252,17 @@ def test_power_balance_of_span_and_roll_at_random_states(seed):
         assert out["roll.phi"] == st["roll.R.tap.q"]
         assert out["roll.F1"] == pytest.approx(tension["right"], rel=1e-10, abs=1e-9)     # e1: the right span
         assert out["roll.F2"] == pytest.approx(tension["left"], rel=1e-10, abs=1e-9)
-        ports = ["xJ.a", "yJ.a", "H.a", "xJ.c", "yJ.c", "H.c", "R.T1.a", "R.T2.a", "G1.o", "G2.o", "R.W.drive"]
+        ports = ["xJ.a", "yJ.a", "H.a", "xJ.c", "yJ.c", "H.c", "R.T1.a", "R.T2.a", "G1.o", "G2.o",
+                 "D.o" if mu else "R.W.drive"]
         dE = w_roll * dx["roll.R.J.p"]
-        assert _power(vals, "roll", ports) == pytest.approx(dE, rel=1e-10, abs=1e-9)
+        load = np.linalg.norm(tension["right"] * t_r - tension["left"] * t_l)
+        friction = mu * 0.005 * load * np.sign(w_roll - omega)
+        assert out["roll.friction"] == pytest.approx(friction, rel=1e-10, abs=1e-12)
+        loss = friction * (w_roll - omega)
+        assert _power(vals, "roll", ports) == pytest.approx(dE + loss, rel=1e-10, abs=1e-9)
         # the roll's torque from the band: r (F_right - F_left) (w = +1: e1 pays out into the right span)
-        assert dx["roll.R.J.p"] == pytest.approx(R_ROLL * (tension["right"] - tension["left"]), rel=1e-10, abs=1e-9)
+        assert dx["roll.R.J.p"] == pytest.approx(R_ROLL * (tension["right"] - tension["left"]) - friction,
+                                                 rel=1e-10, abs=1e-9)
 
 
 # -- fixed geometry: the 1-D band and roll ------------------------------------------------------
@@ -345,3 +359,22 @@ def test_circles_without_room_for_the_tangent_cannot_assemble():
     """Internal tangent of circles 0.15 m apart with r1 + r2 = 0.15 + 0.05: no tangent exists."""
     text = SPAN.replace("x2: 0.3, y2: 0.2", "x2: 0.15, y2: 0.0").replace("r1: 0.05", "r1: 0.15") % (1, 1)
     assert "cannot_assemble" in codes(text)
+
+
+@pytest.mark.parametrize("change", [("r2: 0.03, s2: -1", "r2: 0.04, s2: -1"), ("r2: 0.03, s2: -1", "r2: 0.03, s2: 1"),
+                                    ("[roll.c, left.p2, right.p1]", "[roll.c, right.p1]")])
+def test_span_that_disagrees_with_its_roll_is_refused(change):
+    """The span must know the roll's radius and wrap sense and pull its centre: a wrong radius, a wrong
+    sense (the other tangent: a crossed instead of an open wrap) or a p port joined elsewhere (here
+    left frame-fixed at the origin, the tangent of a circle about A) is an error of check."""
+    assert "planar_band_roll" not in codes(TENSIONER)
+    text = TENSIONER.replace(*change)
+    if "left.p2" not in text:
+        text = text.replace("r2: 0.03, s2: -1, x1: 0.0, y1: 0.0", "r2: 0.03, s2: -1, x1: 0.0, y1: 0.0, x2: 0.5")
+    assert "planar_band_roll" in codes(text)
+
+
+def planar_triggers() -> dict:
+    """The planar span's static check's triggering netlist, for tests/test_diagnostics_text.py."""
+    return {"planar_band_roll": (lambda: scene(TENSIONER.replace("r2: 0.03, s2: -1", "r2: 0.03, s2: 1")),
+                                 ["left.e2", "roll.e2", "s2 = +1"])}

@@ -155,6 +155,7 @@ TRIGGERS = {
     "degrees_of_freedom": (_file(DIAGRAMS / "weber" / "dc_motor.yaml"), ["motor.inertia.p"]),
     **linkage_triggers(),
     **__import__("test_belt_contour").contour_triggers(),     # the curve roll's side check
+    **__import__("test_belt_planar").planar_triggers(),       # the planar span against its roll
     **__import__("test_belt_monitors").belt_triggers(),     # the static belt checks (elements/belt_checks.py)
 }
 

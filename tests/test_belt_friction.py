@@ -187,6 +187,21 @@ def test_slip_and_stick_switching_keeps_the_step_size():
     assert np.all(res.outputs["slack.F"] > 0) and np.all(res.outputs["p2.omega"] > 0)
 
 
+def test_reversed_winding_sense_with_swapped_ports_is_the_same_drive():
+    """w = -1 on the large pulley with its band ports swapped describes the same belt: every output
+    of the run agrees (the junction signs carry w; a sign error there would reverse the material flow)."""
+    swapped = (TEXT.replace("omega0: w*r1/r2}", "omega0: w*r1/r2, w: -1}")
+               .replace("[slack.e2, p2.e2]", "[slack.e2, p2.e1]").replace("[p2.e1, tight.e1]", "[p2.e2, tight.e1]"))
+    assert swapped.count("w: -1") == 1 and "[p2.e2, tight.e1]" in swapped
+    outs = ["p2.omega", "tight.F", "slack.F", "p1.slip", "p2.slip", "p2.F1", "p2.F2"]
+    a = pipeline.run(scene(TEXT), progress=False, outputs=outs)
+    b = pipeline.run(scene(swapped), progress=False, outputs=outs)
+    for name in outs[:5]:
+        np.testing.assert_allclose(b.outputs[name], a.outputs[name], rtol=1e-9, atol=1e-9 * np.max(abs(a.outputs[name])))
+    np.testing.assert_allclose(b.outputs["p2.F1"], a.outputs["p2.F2"], rtol=1e-9)
+    assert [t for t, _ in b.events] == pytest.approx([t for t, _ in a.events], rel=1e-9)
+
+
 # -- power balance ------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("seed", range(3))

@@ -187,6 +187,50 @@ def test_slip_and_stick_switching_keeps_the_step_size():
     assert np.all(res.outputs["slack.F"] > 0) and np.all(res.outputs["p2.omega"] > 0)
 
 
+THREE = """
+name: three_pulleys
+parameters: {w: 10.0, F0: 200.0, EA: 1.0e5, cd: 20.0, rate: 10.0, mu: 0.3}
+elements:
+  motor: {type: speed_source, value: w}
+  p1: {type: belt_pulley, r: 0.05, J: 1.0e-3, mu: mu, wrap: 2.8, omega0: w}
+  p2: {type: belt_pulley, r: 0.1, J: 0.05, mu: mu, wrap: 3.3, omega0: w*0.05/0.1}
+  idler: {type: belt_pulley, r: 0.03, J: 1.0e-5, mu: mu, wrap: 0.6, omega0: w*0.05/0.03}
+  tight: {type: band, EA: EA, cd: cd, l: 0.8, l0: 0.8/(1 + F0/EA)}
+  slack1: {type: band, EA: EA, cd: cd, l: 0.4, l0: 0.4/(1 + F0/EA)}
+  slack2: {type: band, EA: EA, cd: cd, l: 0.45, l0: 0.45/(1 + F0/EA)}
+  load: {type: torque_source, value: -rate*t}
+connections:
+  - [motor.p, p1.drive]
+  - [p1.e1, slack1.e1]
+  - [slack1.e2, idler.e2]
+  - [idler.e1, slack2.e1]
+  - [slack2.e2, p2.e2]
+  - [p2.e1, tight.e1]
+  - [tight.e2, p1.e2]
+  - [load.p, p2.drive]
+outputs: [tight.F, slack1.F, slack2.F, idler.slip, idler.grip, p1.slip]
+simulate: {t_end: 2.0, rtol: 1e-8, dt_out: 0.01}
+"""
+
+
+def test_three_pulleys_the_driver_slips_at_its_own_euler_eytelwein_limit():
+    """A closed belt over three pulleys: driver (wrap 2.8 rad), load (3.3 rad) and an idler on the
+    slack side (0.6 rad, nearly massless). The idler passes the slack tension on (it needs friction
+    only for its own inertia: slack1 = slack2 up to that, and it never slips although its own
+    exp(mu wrap) is 1.2), so the driver slips first, when tight/slack1 (its own two spans) reaches
+    exp(0.3*2.8) = 2.3164: read at the event time by running exactly up to it."""
+    res = pipeline.run(scene(THREE), progress=False)
+    assert [what.split("/")[0] for _t, what in res.events] == ["-Min(1, p1.fr.p.f"]
+    t_ev = res.events[0][0]
+    assert np.all(abs(res.outputs["idler.grip"]) < 0.01) and np.all(abs(res.outputs["idler.slip"]) < V_S)
+    before = res.t < t_ev
+    np.testing.assert_allclose(res.outputs["slack1.F"][before], res.outputs["slack2.F"][before], atol=2e-3)
+    upto = pipeline.run(scene(THREE), progress=False, t_end=t_ev)
+    assert upto.t[-1] == t_ev and not upto.events
+    # the tensions at the event: the ratio at its limit up to the arc inertia and the event tolerance
+    assert upto.outputs["tight.F"][-1] / upto.outputs["slack1.F"][-1] == pytest.approx(exp(0.3 * 2.8), rel=1e-6)
+
+
 def test_reversed_winding_sense_with_swapped_ports_is_the_same_drive():
     """w = -1 on the large pulley with its band ports swapped describes the same belt: every output
     of the run agrees (the junction signs carry w; a sign error there would reverse the material flow)."""

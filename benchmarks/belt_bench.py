@@ -21,7 +21,7 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from math import asin, exp, pi, tanh
+from math import asin, pi, tanh
 from pathlib import Path
 
 import numpy as np

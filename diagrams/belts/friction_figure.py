@@ -28,9 +28,11 @@ def friction_drive():
     ax1.set(xlabel="t [s]  (load torque 10 t N*m)", ylabel="span force [N]", title="strand forces")
     ratio = res["tight.F"] / res["slack.F"]
     ax2.plot(res.t, ratio, label="F_tight / F_slack")
-    ax2.axhline(exp(mu * wrap1), color="k", ls="--", label=f"exp(mu wrap1) = {exp(mu * wrap1):.3f} (small pulley)")
+    ax2.axhline(exp(mu * wrap1), color="k", ls="--",
+                label=f"exp(mu wrap1) = {exp(mu * wrap1):.3f} (small pulley)")
     ax2.axhline(exp(mu * wrap2), color="gray", ls=":", label=f"exp(mu wrap2) = {exp(mu * wrap2):.3f} (large pulley)")
-    ax2.set(xlabel="t [s]", ylabel="F_tight / F_slack [-]", title="tension ratio against Euler-Eytelwein", ylim=(0.9, 2.8))
+    ax2.set(xlabel="t [s]", ylabel="F_tight / F_slack [-]", title="tension ratio against Euler-Eytelwein",
+            ylim=(0.9, 2.8))
     ax3.plot(res.t, res["p1.slip"], label="small pulley (driver)")
     ax3.plot(res.t, res["p2.slip"], label="large pulley (load)")
     ax3.set(xlabel="t [s]", ylabel="slip speed u - r omega [m/s]", title="slip (|slip| < v_s = 1e-4 m/s: sticking)")

@@ -48,35 +48,92 @@ def _newton_step(F, J, scalar: bool):
     return dz if np.all(np.isfinite(dz)) else None
 
 
-def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False):
+def _small_step(F: list, J: list):
+    """The Newton step ``J⁻¹F`` for a small loop given as lists (Gaussian elimination with partial
+    pivoting in plain floats: numpy's call overhead is most of a two-unknown loop's cost), or None
+    where ``J`` is singular."""
+    n = len(F)
+    if n == 2:                    # a dyad of a mechanism: Cramer's rule
+        (a, b), (c, d) = J
+        det = a * d - b * c
+        if det == 0.0:
+            return None
+        dz = [(F[0] * d - b * F[1]) / det, (a * F[1] - c * F[0]) / det]
+        return dz if math.isfinite(dz[0]) and math.isfinite(dz[1]) else None
+    A = [list(row) + [f] for row, f in zip(J, F)]
+    for k in range(n):
+        p = max(range(k, n), key=lambda i: abs(A[i][k]))
+        if A[p][k] == 0.0:
+            return None
+        A[k], A[p] = A[p], A[k]
+        for i in range(k + 1, n):
+            f = A[i][k] / A[k][k]
+            if f:
+                A[i] = [a - f * b for a, b in zip(A[i], A[k])]
+    dz = [0.0] * n
+    for i in range(n - 1, -1, -1):
+        dz[i] = (A[i][n] - sum(A[i][j] * dz[j] for j in range(i + 1, n))) / A[i][i]
+    return dz if all(math.isfinite(d) for d in dz) else None
+
+
+class _Vectors:
+    """The vector operations of :func:`_damped_newton` for one kind of unknowns: ``scalar`` (a float),
+    ``small`` (a list of floats, see :data:`SMALL_NEWTON_MAX`) or an array."""
+
+    def __init__(self, kind: str):
+        self.scalar, self.small = kind == "scalar", kind == "small"
+
+    def norm(self, v):
+        return abs(v) if self.scalar else math.sqrt(sum(x * x for x in v)) if self.small else np.linalg.norm(v)
+
+    def maxabs(self, v):
+        return abs(v) if self.scalar else max(abs(x) for x in v) if self.small else np.max(np.abs(v))
+
+    def step(self, F, J):
+        return _small_step(F, J) if self.small else _newton_step(F, J, self.scalar)
+
+    def axpy(self, z, c, d):
+        """``z + c*d``"""
+        return [a + c * b for a, b in zip(z, d)] if self.small else z + c * d
+
+    def nudge(self, z):
+        """``z`` moved off a point where the loop's Jacobian is singular."""
+        return [a + NEWTON_NUDGE * (1.0 + abs(a)) for a in z] if self.small else z + NEWTON_NUDGE * (1.0 + abs(z))
+
+
+_KINDS = {kind: _Vectors(kind) for kind in ("scalar", "small", "array")}
+
+
+def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False, small: bool = False):
     """Damped Newton from ``z``: ``(solution, iterations)``, or ``(None, iterations)`` if it fails.
 
-    ``scalar``: one unknown, ``fun`` returns floats (no arrays: a few µs less per iteration)."""
-    norm_of = abs if scalar else np.linalg.norm
+    ``scalar``: one unknown, ``fun`` returns floats; ``small``: a few unknowns, ``fun`` returns lists
+    (no arrays: a few µs less per iteration)."""
+    V = _KINDS["scalar" if scalar else "small" if small else "array"]
     start = _residual(fun, z)
     if start is None:
         return None, 0
     F, J = start
-    norm = norm_of(F)
+    norm = V.norm(F)
     nudges = 0
     for it in range(1, max_iter + 1):
         if norm == 0.0:               # a zero residual is a solution, even where J is singular
             return z, it - 1
-        dz = _newton_step(F, J, scalar)
+        dz = V.step(F, J)
         if dz is None:                # singular J off the root (d·f·|f| at f = 0): step off the point
-            trial = _residual(fun, z + NEWTON_NUDGE * (1.0 + abs(z))) if nudges < 3 else None
+            trial = _residual(fun, V.nudge(z)) if nudges < 3 else None
             if trial is None:
                 return None, it
             nudges += 1
-            z = z + NEWTON_NUDGE * (1.0 + abs(z))
+            z = V.nudge(z)
             F, J = trial
-            norm = norm_of(F)
+            norm = V.norm(F)
             continue
-        if (abs(dz) if scalar else np.max(np.abs(dz))) <= tol * (1.0 + (abs(z) if scalar else np.max(np.abs(z)))):
-            return z - dz, it         # converged to rounding: a line search would only halve the step 20 times
+        if V.maxabs(dz) <= tol * (1.0 + V.maxabs(z)):
+            return V.axpy(z, -1.0, dz), it     # converged to rounding: a line search would only halve the step 20 times
         lam = 1.0
         while True:
-            z_new = z - lam * dz
+            z_new = V.axpy(z, -lam, dz)
             trial = _residual(fun, z_new)
             if trial is None and lam >= 1e-6:
                 lam *= 0.5
@@ -84,12 +141,11 @@ def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False):
             if trial is None:
                 return None, it
             F_new, J_new = trial
-            if norm_of(F_new) <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
+            if V.norm(F_new) <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
                 break
             lam *= 0.5
-        z, F, J, norm = z_new, F_new, J_new, norm_of(F_new)
-        step, size = (abs(lam * dz), abs(z)) if scalar else (np.max(np.abs(lam * dz)), np.max(np.abs(z)))
-        if step <= tol * (1.0 + size) or norm == 0.0:
+        z, F, J, norm = z_new, F_new, J_new, V.norm(F_new)
+        if lam * V.maxabs(dz) <= tol * (1.0 + V.maxabs(z)) or norm == 0.0:
             return z, it
     return None, max_iter
 
@@ -97,25 +153,31 @@ def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False):
 #: Newton iterations allowed from the warm start, and then from zero
 NEWTON_MAX_ITER = (60, 200)
 
+#: loops up to this many unknowns are iterated on lists of floats, larger ones on arrays
+SMALL_NEWTON_MAX = 3
 
-def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, scalar: bool = False):
+
+def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, scalar: bool = False, small: bool = False):
     """Solve ``fun(z) = (F, J)`` for ``F = 0`` (damped Newton) for algebraic loop ``k``.
 
     Starts from the last solution ``store[k]``; a trial state of the integrator far from the last
     one (a rejected step) can put that start on the flat side of a steep law (sinh, cubic), so a
-    failed warm start is retried once from zero before giving up.
+    failed warm start is retried once from zero before giving up.  ``scalar``: one unknown (floats);
+    ``small``: up to :data:`SMALL_NEWTON_MAX` unknowns as lists; else arrays.
     """
     total = 0
-    starts = (store[k][0], 0.0) if scalar else (np.array(store[k], dtype=float), np.zeros(len(store[k])))
+    n = len(store[k])
+    starts = (store[k][0], 0.0) if scalar else (list(store[k]), [0.0] * n) if small else \
+        (np.array(store[k], dtype=float), np.zeros(n))
     for z0, max_iter in zip(starts, NEWTON_MAX_ITER):
-        z, it = _damped_newton(fun, z0, tol, max_iter, scalar)
+        z, it = _damped_newton(fun, z0, tol, max_iter, scalar, small)
         total += it
         if z is not None:
             stats["newton_iterations"] += total
             stats["newton_solves"] += 1
             store[k] = [z] if scalar else z
             return z
-    last = _residual(fun, store[k][0] if scalar else np.asarray(store[k], dtype=float))
+    last = _residual(fun, store[k][0] if scalar else list(store[k]) if small else np.asarray(store[k], dtype=float))
     norm = f"{np.linalg.norm(last[0]):.3g}" if last is not None else "not computable"
     raise NewtonError(f"Newton's method did not converge in algebraic loop {k} "
                       f"(|F| = {norm} at the last solution, {total} iterations)")
@@ -620,6 +682,8 @@ class _Writer:
         b = self.eq.blocks[u.block]
         n = len(zs)
         lhs = f"    {', '.join(N[z] for z in zs)}, ="
+        if u.kind == "linear" and n <= UNROLL_MAX_UNKNOWNS:
+            return self.elimination_lines(b.matrix, b.rhs, [N[z] for z in zs])
         if u.kind == "linear":
             return self.matrix_lines("_A", b.matrix) + [f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
                                                         f"{lhs} np.linalg.solve(_A, _b).tolist()"]
@@ -634,6 +698,11 @@ class _Writer:
         if n == 1:
             return [f"    def _blk{k}({N[zs[0]]}):", f"        return ({P(b.residuals[0])}, {P(Jz[0, 0])})",
                     f"    {N[zs[0]]} = newton(_blk{k}, _guess, {k}, _stats, scalar=True)"]
+        if n <= SMALL_NEWTON_MAX:         # lists of floats (newton(small=True))
+            rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
+            return [f"    def _blk{k}(_z):", f"        {', '.join(N[z] for z in zs)}, = _z",
+                    f"        return ([{', '.join(P(r) for r in b.residuals)}], [{rows}])",
+                    f"{lhs} newton(_blk{k}, _guess, {k}, _stats, small=True)"]
         residuals = f"np.array([{', '.join(P(r) for r in b.residuals)}])"
         if n <= DENSE_MAX_UNKNOWNS:
             rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
@@ -642,6 +711,61 @@ class _Writer:
             body = self.matrix_lines("_Jz", Jz, "        ") + [f"        return ({residuals}, _Jz)"]
         return [f"    def _blk{k}(_z):", f"        {', '.join(N[z] for z in zs)}, = _z.tolist()"] + body + \
             [f"{lhs} newton(_blk{k}, _guess, {k}, _stats).tolist()"]
+
+    #: what the generated code does where a pivot column is zero (numba: nothing, the division makes
+    #: the values NaN and the integrator stops)
+    SINGULAR = "raise np.linalg.LinAlgError('singular matrix')"
+
+    def elimination_lines(self, A, b, names: list) -> list:
+        """``names = A⁻¹ b`` as straight-line scalar code: Gaussian elimination with partial pivoting,
+        unrolled over the sparsity pattern of ``A`` (a structural zero is never multiplied; a column
+        with one candidate pivot is swapped while printing, one with several chooses the largest at
+        run time).  No arrays and no solver call: a four-bar's 5 × 5 acceleration loop costs a
+        fraction of ``np.linalg.solve`` (and of the compiled LU)."""
+        P, n = self.P, len(names)
+        nz = {i: {j for j in range(n) if A[i, j] != 0} for i in range(n)}     # row id -> its nonzero columns
+        lines = [f"    _a{i}_{j} = {P(A[i, j])}" for i in range(n) for j in sorted(nz[i])]
+        lines += [f"    _r{i} = {P(b[i])}" for i in range(n)]
+        rows = list(range(n))            # position -> row id
+        for k in range(n):
+            cand = [i for i in range(k, n) if k in nz[rows[i]]]
+            if not cand:
+                raise ModelError("singular_loop", "a linear loop's matrix is structurally singular",
+                                 "report this: the causality analysis should have refused the network")
+            rows[k], rows[cand[0]] = rows[cand[0]], rows[k]      # the first candidate: swapped while printing
+            if len(cand) > 1:
+                ids = [rows[k]] + [rows[i] for i in cand[1:]]
+                union = set().union(*(nz[r] for r in ids)) - set(range(k))
+                for r in ids:
+                    lines += [f"    _a{r}_{j} = 0.0" for j in sorted(union - nz[r])]
+                    nz[r] = set(union)
+                first = ids[0]
+                lines += [f"    _p = {first}", f"    _m = abs(_a{first}_{k})"]
+                for r in ids[1:]:
+                    lines += [f"    if abs(_a{r}_{k}) > _m:", f"        _p = {r}", f"        _m = abs(_a{r}_{k})"]
+                if self.SINGULAR:
+                    lines += ["    if _m == 0.0:", f"        {self.SINGULAR}"]
+                cols = sorted(union)
+                mine = [f"_a{first}_{j}" for j in cols] + [f"_r{first}"]
+                for r in ids[1:]:
+                    theirs = [f"_a{r}_{j}" for j in cols] + [f"_r{r}"]
+                    lines += [f"    if _p == {r}:",
+                              f"        {', '.join(mine + theirs)} = {', '.join(theirs + mine)}"]
+            rk = rows[k]
+            below = [rows[i] for i in range(k + 1, n) if k in nz[rows[i]]]
+            if below:
+                lines.append(f"    _d = 1.0 / _a{rk}_{k}")
+            for r in below:
+                lines.append(f"    _f = _a{r}_{k} * _d")
+                for j in sorted(c for c in nz[rk] if c > k):
+                    lines.append(f"    _a{r}_{j} -= _f * _a{rk}_{j}" if j in nz[r] else f"    _a{r}_{j} = -_f * _a{rk}_{j}")
+                    nz[r].add(j)
+                lines.append(f"    _r{r} -= _f * _r{rk}")
+        for k in range(n - 1, -1, -1):
+            rk = rows[k]
+            terms = "".join(f" - _a{rk}_{j} * {names[j]}" for j in sorted(c for c in nz[rk] if c > k))
+            lines.append(f"    {names[k]} = (_r{rk}{terms}) / _a{rk}_{k}")
+        return lines
 
     def matrix_lines(self, name: str, M, indent: str = "    ") -> list:
         """``name = M`` as code: a literal array up to :data:`DENSE_MAX_UNKNOWNS` rows, else zeros and
@@ -983,6 +1107,10 @@ def _diff(expr, w):
 
 #: Loop matrices up to this many rows are printed as array literals; larger ones entry by entry.
 DENSE_MAX_UNKNOWNS = 8
+
+#: Numeric linear loops up to this many unknowns are solved by unrolled scalar elimination
+#: (:meth:`Writer.elimination_lines`), larger ones by a solver call on an array.
+UNROLL_MAX_UNKNOWNS = 8
 
 #: Expressions with more operations than this are printed after common-subexpression elimination.
 CSE_MIN_OPS = 40

@@ -99,21 +99,23 @@ _SIG = "types.void(types.float64, types.voidptr, types.voidptr, types.voidptr)"
 
 #: damped Newton iteration for one algebraic loop (the rule of :func:`multipole.codegen.newton`),
 #: generated per loop so that it calls the loop's residual function directly; written with loops
-#: and the kernels' LU because numba compiles numpy's array functions slowly
+#: and the kernels' Gaussian elimination because numba compiles numpy's array functions slowly; its
+#: vectors and matrix are views of the work array w (after the loop's guess), so a call allocates
+#: nothing (an allocation costs about as much as a residual evaluation of a four-bar)
 _NEWTON = '''@njit(cache=True, error_model="numpy")
-def _newton{k}(w, a):
-    """Damped Newton for the loop {k}, warm-started from w[{off}:{end}], then from zero; NaN if both fail."""
-    z = np.empty({n})
-    z_new = np.empty({n})
-    dz = np.empty({n})
-    F = np.empty({n})
-    J = np.empty(({n}, {n}))
-    piv = np.empty({n}, dtype=np.int64)
+def _newton{k}(w):
+    """Damped Newton for the loop {k}, warm-started from w[{off}:{end}], then from zero; the solution (or
+    NaN if both fail) in w[{s_z}:{s_z} + {n}]."""
+    z = w[{s_z}:{s_z} + {n}]
+    z_new = w[{s_z} + {n}:{s_z} + {n2}]
+    dz = w[{s_z} + {n2}:{s_z} + {n3}]
+    F = w[{s_z} + {n3}:{s_z} + {n4}]
+    J = w[{s_z} + {n4}:{s_z} + {n4} + {n} * {n}].reshape(({n}, {n}))
     total = 0
     for attempt in range(2):
         for i in range({n}):
             z[i] = w[{off} + i] if attempt == 0 else 0.0
-        _blk{k}(z, a, F, J)
+        _blk{k}(z, w, F, J)
         norm = _k.norm2(F)
         for it in range(1, {max_warm} + 1 if attempt == 0 else {max_zero} + 1):
             if norm == 0.0:     # a zero residual is a solution, even where J is singular
@@ -121,21 +123,16 @@ def _newton{k}(w, a):
                 w[1] += 1
                 for i in range({n}):
                     w[{off} + i] = z[i]
-                return z
+                return
             total += 1
             for i in range({n}):
                 dz[i] = F[i]
-            _k.lu_factor(J, piv)
-            singular = False
-            for i in range({n}):
-                singular = singular or J[i, i] == 0.0
-            if singular:        # off the root (d*f*|f| at f = 0): step off the singular point
+            if not _k.gauss_solve(J, dz):    # off the root (d*f*|f| at f = 0): step off the singular point
                 for i in range({n}):
                     z[i] += {nudge} * (1.0 + abs(z[i]))
-                _blk{k}(z, a, F, J)
+                _blk{k}(z, w, F, J)
                 norm = _k.norm2(F)
                 continue
-            _k.lu_solve(J, piv, dz)
             step = 0.0
             big = 0.0
             for i in range({n}):
@@ -147,12 +144,12 @@ def _newton{k}(w, a):
                     w[{off} + i] = z[i]
                 w[0] += total
                 w[1] += 1
-                return z
+                return
             lam = 1.0
             while True:
                 for i in range({n}):
                     z_new[i] = z[i] - lam * dz[i]
-                _blk{k}(z_new, a, F, J)
+                _blk{k}(z_new, w, F, J)
                 norm_new = _k.norm2(F)
                 if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
                     break
@@ -169,26 +166,95 @@ def _newton{k}(w, a):
                 w[1] += 1
                 for i in range({n}):
                     w[{off} + i] = z[i]
-                return z
+                return
     w[2] += 1
     for i in range({n}):
         z[i] = math.nan
-    return z
 '''
+#: loops up to this many unknowns get a Newton iteration in scalar variables (the step by Cramer's
+#: rule, residuals returned as a tuple): no arrays at all; the dyads of a mechanism have two unknowns
+SCALAR_NEWTON_MAX = 3
+
+
+def _cramer(n: int) -> tuple[str, list]:
+    """Code of ``det(J)`` and of ``det(J_i)`` (column i replaced by ``F``) for the scalars ``J{i}{j}``
+    and ``F{i}``: the Newton step is ``dz_i = det(J_i) / det(J)``."""
+    J = sp.Matrix(n, n, lambda i, j: sp.Symbol(f"J{i}{j}"))
+    F = sp.Matrix(n, 1, lambda i, _j: sp.Symbol(f"F{i}"))
+    cols = []
+    for i in range(n):
+        Ji = J.copy()
+        Ji[:, i] = F
+        cols.append(str(sp.expand(Ji.det(method="berkowitz"))))
+    return str(sp.expand(J.det(method="berkowitz"))), cols
+
+
+def _scalar_newton(k: int, n: int, off: int) -> str:
+    """The damped Newton iteration of :data:`_NEWTON` in scalars for a loop of ``n`` unknowns (up to
+    :data:`SCALAR_NEWTON_MAX`) whose residual function ``_blk{k}(z0, ..., w)`` returns ``(F0, ...,
+    J00, J01, ...)``: warm-started from ``w[off:off + n]``, then from zero; returns the solution (NaN
+    if both starts fail)."""
+    r = range(n)
+    zs, news, ds = [f"z{i}" for i in r], [f"n{i}" for i in r], [f"d{i}" for i in r]
+    out = ", ".join([f"F{i}" for i in r] + [f"J{i}{j}" for i in r for j in r])
+    det, cols = _cramer(n)
+    tup = ", ".join(zs) + ","
+    norm = "math.sqrt(" + " + ".join(f"F{i} * F{i}" for i in r) + ")"
+    big = "max(" + ", ".join(f"abs({z})" for z in zs) + ", 0.0)"
+    store = [f"                w[{off + i}] = {z}" for i, z in enumerate(zs)]
+    done = ["                w[0] += total", "                w[1] += 1"] + store + [f"                return {tup}"]
+    lines = ['@njit(cache=True, error_model="numpy")', f"def _newton{k}(w):",
+             f'    """Damped Newton for the loop {k} in scalars, warm-started from w[{off}:{off + n}], then from zero."""',
+             "    total = 0", "    for attempt in range(2):",
+             f"        {tup} = (" + ", ".join(f"w[{off + i}]" for i in r) + ",) if attempt == 0 else ("
+             + ", ".join("0.0" for _ in r) + ",)",
+             f"        {out}, = _blk{k}({', '.join(zs)}, w)", f"        norm = {norm}",
+             f"        for it in range(1, {codegen.NEWTON_MAX_ITER[0]} + 1 if attempt == 0 else "
+             f"{codegen.NEWTON_MAX_ITER[1]} + 1):",
+             "            if norm == 0.0:     # a zero residual is a solution, even where J is singular"]
+    lines += done
+    lines += ["            total += 1", f"            det = {det}",
+              "            if det == 0.0:      # off the root (d*f*|f| at f = 0): step off the singular point"]
+    lines += [f"                {z} += {codegen.NEWTON_NUDGE} * (1.0 + abs({z}))" for z in zs]
+    lines += [f"                {out}, = _blk{k}({', '.join(zs)}, w)", f"                norm = {norm}",
+              "                continue"]
+    lines += [f"            {d} = ({c}) / det" for d, c in zip(ds, cols)]
+    lines += ["            step = max(" + ", ".join(f"abs({d})" for d in ds) + ", 0.0)",
+              f"            if step <= 1e-12 * (1.0 + {big}):     # converged to rounding: no line search"]
+    lines += [f"                {z} -= {d}" for z, d in zip(zs, ds)] + done
+    lines += ["            lam = 1.0", "            while True:"]
+    lines += [f"                {m} = {z} - lam * {d}" for m, z, d in zip(news, zs, ds)]
+    lines += [f"                {out}, = _blk{k}({', '.join(news)}, w)", f"                norm_new = {norm}",
+              "                if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:", "                    break",
+              "                lam *= 0.5"]
+    lines += ["            step = lam * max(" + ", ".join(f"abs({d})" for d in ds) + ", 0.0)"]
+    lines += [f"            {tup} = {', '.join(news)},", "            norm = norm_new",
+              f"            if step <= 1e-12 * (1.0 + {big}) or norm == 0.0:"] + done
+    lines += ["    w[2] += 1", "    return (" + ", ".join("math.nan" for _ in r) + ",)", ""]
+    return "\n".join(lines)
+
+
 _W_HEAD = K.W_HEAD     # layout of the work array: see numba_kernels.W_HEAD
 
 
 class _Writer(codegen.Writer):
     """Prints the model as numba ``cfunc`` functions ``void fun(t, *x, *out, *w)``."""
 
+    SINGULAR = None      # a cfunc cannot raise: the division by a zero pivot makes the values NaN
+
     def __init__(self, eq):
         super().__init__(eq)
         self.printer = _Printer(self.names)
         self.blocks_src: list[str] = []      # module-level residual and Newton functions of loops
         self.switches = switch_list(self)
-        self.work = _W_HEAD + len(self.switches)   # the switches' sides, then the loops' guesses
+        self.work = _W_HEAD + len(self.switches)   # the switches' sides, then the loops' parts
         self.offsets: dict = {}              # Newton loop (block index) -> offset of its guess in w
         self.deps: dict = {}                 # Newton loop -> symbols its residuals read
+        # A and b of the numeric linear loops in a scratch part of w (no allocation per call), shared:
+        # the loops are solved one after the other
+        self.linear_scratch = self.work
+        self.work += max([len(u.variables) * (len(u.variables) + 1) for u in self.units
+                          if u.kind == "linear" and len(u.variables) > codegen.UNROLL_MAX_UNKNOWNS], default=0)
 
     def prologue(self, units, extra=()) -> list:
         used = set(extra).union(*(u.deps for u in units)) if units else set(extra)
@@ -205,14 +271,17 @@ class _Writer(codegen.Writer):
         b = self.eq.blocks[u.block]
         zs = u.variables
         n = len(zs)
+        if u.kind == "linear" and n <= codegen.UNROLL_MAX_UNKNOWNS:
+            return self.elimination_lines(b.matrix, b.rhs, [N[z] for z in zs])
         if u.kind == "linear":
-            lines = [f"    _A = np.zeros(({n}, {n}))", f"    _b = np.empty({n})",
-                     f"    _piv = np.empty({n}, dtype=np.int64)"]
+            s = self.linear_scratch
+            lines = [f"    _A = w[{s}:{s + n * n}].reshape(({n}, {n}))", f"    _b = w[{s + n * n}:{s + n * n + n}]",
+                     f"    for _i in range({n * n}):", f"        w[{s} + _i] = 0.0"]
             # only the nonzero entries: each element store costs numba as much as 100 bytes of code
             entries = ((i, j, P(b.matrix[i, j])) for i in range(n) for j in range(n))
             lines += [f"    _A[{i}, {j}] = {code}" for i, j, code in entries if code not in ("0.0", "-0.0")]
             lines += [f"    _b[{i}] = {P(b.rhs[i])}" for i in range(n)]
-            lines += ["    _k.lu_factor(_A, _piv)", "    _k.lu_solve(_A, _piv, _b)"]
+            lines += ["    _k.gauss_solve(_A, _b)"]
             return lines + [f"    {N[z]} = _b[{i}]" for i, z in enumerate(zs)]
         return self.newton_lines(u, b)
 
@@ -223,25 +292,45 @@ class _Writer(codegen.Writer):
         n = len(zs)
         k = u.block
         if k not in self.offsets:
-            off = self.offsets[k] = self.work
-            self.work += n
+            # w[off:] the guess, then the values the residuals read, then Newton's scratch (z first)
             res = [sp.sympify(r).xreplace(self.pvals) for r in b.residuals]
             free = set().union(*(r.free_symbols for r in res)) - set(zs)
             self.deps[k] = deps = sorted(free, key=lambda s: N[s])
+            off = self.offsets[k] = self.work
+            s_z = off + n + len(deps)
+            scalar = n <= SCALAR_NEWTON_MAX
+            self.work = s_z if scalar else s_z + 4 * n + n * n
             Jz = sp.Matrix(res).jacobian(zs)
-            src = ["@njit(cache=True, error_model='numpy')", f"def _blk{k}(_z, _a, _F, _J):",
-                   f'    """Residuals of the algebraic loop for {", ".join(map(str, zs))} and their Jacobian."""']
-            src += [f"    {N[d]} = _a[{i}]" for i, d in enumerate(deps)]
-            src += [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
+            head = f'    """Residuals of the algebraic loop for {", ".join(map(str, zs))} and their Jacobian."""'
+            src = ["@njit(cache=True, error_model='numpy')",
+                   f"def _blk{k}({', '.join(f'_z{i}' for i in range(n))}, w):" if scalar else
+                   f"def _blk{k}(_z, w, _F, _J):", head]
+            src += [f"    {N[d]} = w[{off + n + i}]" for i, d in enumerate(deps)]
+            src += [f"    {N[z]} = _z{i}" if scalar else f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
+            if scalar:
+                src += ["    return (" + ", ".join([P(r) for r in res] + [P(Jz[i, j]) for i in range(n)
+                                                                           for j in range(n)]) + ",)",
+                        "", _scalar_newton(k, n, off)]
+                self.blocks_src += src
+                return self.newton_call(u, b)
             src += [f"    _F[{i}] = {P(r)}" for i, r in enumerate(res)]
             src += [f"    _J[{i}, {j}] = {P(Jz[i, j])}" for i in range(n) for j in range(n)]
-            src += ["", _NEWTON.format(k=k, off=off, end=off + n, n=n, max_warm=codegen.NEWTON_MAX_ITER[0],
-                                              max_zero=codegen.NEWTON_MAX_ITER[1], nudge=codegen.NEWTON_NUDGE)]
+            src += ["", _NEWTON.format(k=k, off=off, end=off + n, n=n, n2=2 * n, n3=3 * n, n4=4 * n, s_z=s_z,
+                                       max_warm=codegen.NEWTON_MAX_ITER[0], max_zero=codegen.NEWTON_MAX_ITER[1],
+                                       nudge=codegen.NEWTON_NUDGE)]
             self.blocks_src += src
-        deps = self.deps[k]
-        lines = [f"    _a = np.empty({max(len(deps), 1)})"] + [f"    _a[{i}] = {N[d]}" for i, d in enumerate(deps)]
-        lines += [f"    w[{self.offsets[k] + i}] = {N[v]}" for i, v in enumerate(b.start or ())]
-        return lines + [f"    _z = _newton{k}(w, _a)"] + [f"    {N[z]} = _z[{i}]" for i, z in enumerate(zs)]
+        return self.newton_call(u, b)
+
+    def newton_call(self, u, b) -> list:
+        """The call of loop ``u``'s Newton function: its inputs and start into w, the solution out."""
+        N, zs, k = self.names, u.variables, u.block
+        n, off, deps = len(zs), self.offsets[k], self.deps[k]
+        lines = [f"    w[{off + n + i}] = {N[d]}" for i, d in enumerate(deps)]
+        lines += [f"    w[{off + i}] = {N[v]}" for i, v in enumerate(b.start or ())]
+        if n <= SCALAR_NEWTON_MAX:
+            return lines + [f"    {', '.join(N[z] for z in zs)}, = _newton{k}(w)"]
+        s_z = off + n + len(deps)
+        return lines + [f"    _newton{k}(w)"] + [f"    {N[z]} = w[{s_z + i}]" for i, z in enumerate(zs)]
 
     def function(self, name, doc, needed, values, shape) -> list:
         """A cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``."""

@@ -189,6 +189,48 @@ def lu_solve(LU, piv, b):
 
 
 @njit(cache=True)
+def gauss_solve(A, b):
+    """Solve ``A z = b`` in place in ``b`` (``A`` overwritten) by Gaussian elimination with partial
+    pivoting, the row swaps applied to ``b`` as they happen: no pivot array, so the generated code
+    solves its small loops in views of the work array without allocating.  False (and ``b`` NaN) if
+    a pivot is zero."""
+    n = b.size
+    for k in range(n):
+        p = k
+        big = abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > big:
+                big = abs(A[i, k])
+                p = i
+        if big == 0.0:
+            for i in range(n):
+                b[i] = np.nan
+            return False
+        if p != k:
+            for j in range(k, n):
+                tmp = A[k, j]
+                A[k, j] = A[p, j]
+                A[p, j] = tmp
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+        d = A[k, k]
+        for i in range(k + 1, n):
+            a = A[i, k]
+            if a != 0.0:
+                a /= d
+                for j in range(k + 1, n):
+                    A[i, j] -= a * A[k, j]
+                b[i] -= a * b[k]
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s / A[i, i]
+    return True
+
+
+@njit(cache=True)
 def neg_solve(A, B):
     """``-A^-1 B`` for a square ``A`` and a matrix ``B`` (A is overwritten by its LU)."""
     n = A.shape[0]

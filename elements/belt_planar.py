@@ -74,8 +74,10 @@ def tangent(x1, y1, r1, s1, x2, y2, r2, s2):
 @element("planar_band", "elastic band span between two circles (Ebert 4.4.1 on planar ports): the common tangent "
          "of the circles about the centres read at p1, p2 with radii r1, r2 and wrap senses s1, s2; "
          "tension-only Kelvin-Voigt band, stiffness EA/l_x",
-         {"e1": f"band end at circle 1 ({_BAND}); held (band tied) if not connected",
-          "e2": f"band end at circle 2 ({_BAND}); held (band tied) if not connected",
+         {"e1": f"band end at circle 1 ({_BAND}; gamma: the span's inclination); held (band tied) if not "
+                "connected",
+          "e2": f"band end at circle 2 ({_BAND}; gamma: the inclination + pi, the direction of the span leaving "
+                "circle 2); held (band tied) if not connected",
           "p1": f"centre of circle 1 ({_PLANAR}; the span pulls it, no torque): a roll's port c, a "
                 "linkage output; frame-fixed at (x1, y1) if not connected",
           "p2": f"centre of circle 2 ({_PLANAR}); frame-fixed at (x2, y2) if not connected"},
@@ -152,7 +154,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
           "xK1": qv(k1[0]), "yK1": qv(k1[1]), "xK2": qv(k2[0]), "yK2": qv(k2[1])}
     return Network("planar_band", children, connections, ports, params, q_, signals={"delta": "c.q", "gam": "tap.q"},
                    bundles={"e1": "band", "e2": "band", "p1": "planar", "p2": "planar"},
-                   positions={"e1.gamma": g, "e2.gamma": g},
+                   positions={"e1.gamma": g, "e2.gamma": g + sp.pi},
                    reads={"xa": ("p1.x", _S("x1")), "ya": ("p1.y", _S("y1")),
                           "xb": ("p2.x", _S("x2")), "yb": ("p2.y", _S("y2"))},
                    fixed=("e1.l", "e2.l", "p1.x", "p1.y", "p1.phi", "p2.x", "p2.y", "p2.phi"),
@@ -181,6 +183,8 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
           Param("mu", "-", "bearing friction coefficient: torque mu*r_pin*|span forces on the axis| against the "
                 "rotation relative to the housing", 0.0, nonnegative=True),
           Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True),
+          Param("mu_c", "-", "contact friction for the capstan monitor (None: no monitor): reports a run "
+                "where one tension exceeds e^(mu_c*wrap) times the other", None),
           Param("x", "m", "frame position x of the axis when a is not connected", 0.0),
           Param("y", "m", "frame position y of the axis when a is not connected", 0.0)],
          {"phi": "rad: roll angle", "omega": "rad/s: angular velocity", "F1": "N: band tension at e1",
@@ -189,12 +193,16 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
           "-w r [(phi - phi0) - (gamma2 - gamma2(0))]", "Fx": "N: x force of the spans on the axis",
           "Fy": "N: y force of the spans on the axis", "x": "m: x of the axis", "y": "m: y of the axis",
           "friction": "N*m: bearing friction torque (taken from the roll, positive when it turns faster than "
-                      "its housing)"})
-def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, x, y):
+                      "its housing)",
+          "wrap": "rad: wrap angle, from the contact where the band runs on to the one where it leaves "
+                  "(in (0, 2 pi) at t = 0, continuous; the monitor band_lifts_off reports it falling to 0)"})
+def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x, y):
     """Circular roll on a planar bearing [r in m, J in kg*m^2, angles in rad, m in kg]."""
     # the 1-D roll with its parameters bound to this element's (a scene's expression like
     # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense)
-    roll = _roll("planar_roll", 2, _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0, math.pi)
+    # its wrap is the state beta below (the monitors band_lifts_off and, with mu_c, capstan_limit)
+    roll = _roll("planar_roll", 2, _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0, _S("beta"),
+                 mu_c=None if mu_c is None else _S("mu_c"))
     children = {"R": roll}
     connections, ports = [], {"drive": "R.drive", "e1.l": "R.e1.l", "e2.l": "R.e2.l", "a.phi": "H.a",
                               "c.phi": "H.c"}
@@ -218,29 +226,40 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, x, y):
             children[f"m{axis}"] = I(J=_S("m"), dom="translational", p0=None)
             children[f"g{axis}"] = Se(_S("m") * _S(f"g{axis}"), "translational")
             connections += [[f"{axis}J.m", f"m{axis}.p"], [f"{axis}J.g", f"g{axis}.p"]]
-    # the band ports' gamma: no torque; a tap integrates gamma - gamma(0) for the wound lengths
+    # the band ports' gamma (the direction of each span leaving the roll): no torque; a tap integrates
+    # gamma - gamma(0) for the wound lengths.  The contacts lie at kappa1 = gamma1 - w pi/2 and
+    # kappa2 = gamma2 + w pi/2; the band runs on at e2 and off at e1, so the wrap is w (kappa1 - kappa2)
+    # = w (gamma1 - gamma2) - pi, taken in (0, 2 pi) at t = 0 and integrated from the rates after it
+    ws, g1, g2 = (1 if w in (1, 1.0) else -1), _S("g1"), _S("g2")
     for k in (1, 2):
-        children[f"G{k}"] = junction_b(["o", "i", "tap"], "rotational")
+        children[f"G{k}"] = junction_b(["o", "i", "tap", "w"], "rotational")
         children[f"tap{k}"] = Tap("rotational", q0=0)
-        connections += [[f"G{k}.i", f"R.e{k}.gamma"], [f"G{k}.tap", f"tap{k}.p"]]
+        connections += [[f"G{k}.i", f"R.e{k}.gamma"], [f"G{k}.tap", f"tap{k}.p"], [f"G{k}.w", f"B.g{k}"]]
         ports[f"e{k}.gamma"] = f"G{k}.o"
+    wrap0 = ws * (g1 - g2) - sp.pi
+    children["B"] = junction_a(["g1", "g2", "t"], "rotational", [ws, -ws, -1])
+    children["wrap"] = Tap("rotational", q0=wrap0 - 2 * sp.pi * sp.floor(wrap0 / (2 * sp.pi)))
+    connections.append(["B.t", "wrap.p"])
+    signals["beta"] = "wrap.q"
     xa, ya, pa = _S("xa"), _S("ya"), _S("pa")
     params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": int(w) if w in (1, -1) else w, "m": m,
-              "gx": gx, "gy": gy, "mu": mu, "r_pin": r_pin, "x": x, "y": y}
+              "gx": gx, "gy": gy, "mu": mu, "r_pin": r_pin, "x": x, "y": y} | ({} if mu_c is None else {"mu_c": mu_c})
     q = {"phi": Quantity(lambda V: V.x("R.tap.q")), "omega": Quantity(lambda V: V.f("R.drive")),
          "F1": Quantity(lambda V: V.e("R.T1.a")), "F2": Quantity(lambda V: V.e("R.T2.a")),
          "lr1": Quantity(lambda V: V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap1.q"))),
          "lr2": Quantity(lambda V: -V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap2.q"))),
          "Fx": Quantity(lambda V: V.e("xJ.c")), "Fy": Quantity(lambda V: V.e("yJ.c")),
          "x": Quantity(lambda V: V.param("xa")), "y": Quantity(lambda V: V.param("ya")),
-         "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0))}
+         "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0)),
+         "wrap": Quantity(lambda V: V.x("wrap.q"))}
     ph = _S("rphi")
     circle = [(xa + _S("r") * sp.cos(ph + 2 * math.pi * k / _CIRCLE), ya + _S("r") * sp.sin(ph + 2 * math.pi * k / _CIRCLE))
               for k in range(_CIRCLE + 1)]
     return Network("planar_roll", children, connections, ports, params, q, signals=signals,
                    bundles={"a": "planar", "c": "planar", "e1": "band", "e2": "band"},
                    positions={"c.x": xa, "c.y": ya, "c.phi": pa},
-                   reads={"xa": ("a.x", _S("x")), "ya": ("a.y", _S("y")), "pa": ("a.phi", 0)},
+                   reads={"xa": ("a.x", _S("x")), "ya": ("a.y", _S("y")), "pa": ("a.phi", 0),
+                          "g1": ("e1.gamma", 0), "g2": ("e2.gamma", 0)},
                    fixed=("a.x", "a.y", "a.phi", "e1.gamma", "e2.gamma"),
                    sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="line"),
                            Sketch([(xa, ya), circle[0]], ["", ""], style="line"),

@@ -378,3 +378,43 @@ def planar_triggers() -> dict:
     """The planar span's static check's triggering netlist, for tests/test_diagnostics_text.py."""
     return {"planar_band_roll": (lambda: scene(TENSIONER.replace("r2: 0.03, s2: -1", "r2: 0.03, s2: 1")),
                                  ["left.e2", "roll.e2", "s2 = +1"])}
+
+
+# -- run-time monitors on a moving wrap ---------------------------------------------------------
+
+def test_band_lifting_off_a_roll_on_a_lever_is_reported():
+    """The lever (pivot now at (0.2, -0.12)) swings the roll up through the line AB (y = 0): the wrap
+    w (gamma1 - gamma2) - pi falls to 0 when the line AB is tangent to the roll from below, i.e. at
+    the roll centre's height y = r; band_lifts_off is reported there (the run goes on)."""
+    text = TENSIONER.replace("phi0: 1.5707963267948966, m: 0.0, J: 1.0e-3, x1: 0.2, y1: -0.2",
+                             "phi0: 0.6, m: 0.0, J: 1.0e-3, x1: 0.2, y1: -0.12") \
+        .replace("k: 200.0, x0: -0.5", "k: 20.0, x0: -1.0").replace("roll.lr2]", "roll.lr2, roll.wrap]")
+    res = pipeline.run(scene(text), progress=False, t_end=1.0)
+    assert res.outputs["roll.wrap"][0] > 1.0 and res.outputs["roll.wrap"][-1] < 0
+    found = [m for m in res.monitors if m[2] == "band_lifts_off"]
+    assert len(found) == 1 and found[0][1].startswith("roll")
+    at = pipeline.run(scene(text), progress=False, t_end=found[0][0])
+    # measured 1.1e-12 m: the crossing is located to the event tolerance
+    assert at.outputs["roll.y"][-1] == pytest.approx(R_ROLL, abs=1e-9)
+    assert at.outputs["roll.wrap"][-1] == pytest.approx(0.0, abs=1e-9)
+    # the wrap is the angle between the tangent points, as the material test constructs it
+    assert "band_lifts_off" not in [m[2] for m in run(TENSIONER).monitors]
+
+
+def test_capstan_limit_on_a_planar_roll():
+    """A torque ramp on the tensioner roll; with the contact friction mu_c = 0.05 capstan_limit is
+    reported (first at e1 in the start transient, later at e2 as the torque grows) exactly where the
+    tension at that port reaches e^(mu_c*wrap) times the other.  The wrap and both tensions are
+    outputs: a pruned model drops a monitor whose inputs no output needs (reported, kernel)."""
+    text = TENSIONER.replace("roll: {type: planar_roll, r: 0.03, J: 1.0e-4}",
+                             "roll: {type: planar_roll, r: 0.03, J: 1.0e-4, mu_c: 0.05}\n  torque: "
+                             "{type: torque_source, value: 2.0*t}") \
+        .replace("  - [roll.e1, right.e1]", "  - [roll.e1, right.e1]\n  - [torque.p, roll.drive]") \
+        .replace("roll.lr2]", "roll.lr2, roll.wrap, roll.F1, roll.F2]")
+    res = pipeline.run(scene(text), progress=False, t_end=2.0)
+    found = [m for m in res.monitors if m[2] == "capstan_limit"]
+    assert len(found) >= 2 and "e1" in found[0][3] and "e2" in found[-1][3]
+    for when, tight, slack in ((found[0][0], "F1", "F2"), (found[-1][0], "F2", "F1")):
+        at = pipeline.run(scene(text), progress=False, t_end=when).outputs
+        assert at[f"roll.{tight}"][-1] / at[f"roll.{slack}"][-1] == pytest.approx(
+            math.exp(0.05 * at["roll.wrap"][-1]), rel=1e-6)

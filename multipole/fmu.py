@@ -376,7 +376,7 @@ def model_source(eq: Equations, outputs) -> tuple[str, int]:
     need_sw = set().union(*(sp.sympify(s).free_symbols for s in sw)) if sw else set()
     _refuse_unsupported(w, eq, set(eq.derivatives) | need_out | need_sw)
     N, P = w.names, w.P
-    held = {g: k for k, g in enumerate(sw)} if sw else None
+    held = codegen.modal_switches(w, sw) if sw else None
 
     def build():
         src = []

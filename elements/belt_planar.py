@@ -135,8 +135,10 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
     k2 = (xb + _S("s2") * _S("r2") * -s, yb + _S("s2") * _S("r2") * c)
     closure = Closure(["tap.q"], [-s * dx + c * dy + delta],
                       "the span on the common tangent of the two circles",
-                      conditions=[(dx ** 2 + dy ** 2 - delta ** 2, "the circles leave no room for the tangent: "
-                                   "|C2 - C1| must exceed |s1 r1 + s2 r2|", "m^2")],
+                      # (10 um)^2: a span of (nearly) zero length has no direction (atan2(0, 0) := 0 is refused)
+                      conditions=[(dx ** 2 + dy ** 2 - delta ** 2 - 1e-10, "the circles leave no room for a tangent "
+                                   "of positive length: |C2 - C1| must exceed |s1 r1 + s2 r2| (spans shorter than "
+                                   "10 um are refused)", "m^2")],
                       guard=(lb, 1e-6, "span length"))
 
     def local(expr):

@@ -355,10 +355,15 @@ def test_wrap_sense_other_than_plus_or_minus_one_is_refused():
     assert exc.value.code == "bad_wrap_sense"
 
 
-def test_circles_without_room_for_the_tangent_cannot_assemble():
-    """Internal tangent of circles 0.15 m apart with r1 + r2 = 0.15 + 0.05: no tangent exists."""
-    text = SPAN.replace("x2: 0.3, y2: 0.2", "x2: 0.15, y2: 0.0").replace("r1: 0.05", "r1: 0.15") % (1, 1)
-    assert "cannot_assemble" in codes(text)
+@pytest.mark.parametrize("centre, r1, senses", [("x2: 0.15, y2: 0.0", "r1: 0.15", (1, 1)),
+                                                ("x2: 0.0, y2: 0.0", "r1: 0.1", (1, -1))])
+def test_circles_without_room_for_the_tangent_cannot_assemble(centre, r1, senses):
+    """Internal tangent of circles 0.15 m apart with r1 + r2 = 0.15 + 0.05: no tangent exists; equal
+    concentric circles: an external tangent of zero length (no direction). Both are refused by check
+    with the condition's text, naming the span."""
+    text = SPAN.replace("x2: 0.3, y2: 0.2", centre).replace("r1: 0.05", r1) % senses
+    found = [d for d in pipeline.check(scene(text)).diagnostics if d.code == "cannot_assemble"]
+    assert found and "no room for a tangent" in found[0].message and "s " in found[0].message
 
 
 @pytest.mark.parametrize("change", [("r2: 0.03, s2: -1", "r2: 0.04, s2: -1"), ("r2: 0.03, s2: -1", "r2: 0.03, s2: 1"),

@@ -123,17 +123,15 @@ def cmd_simulate(args) -> int:
     check_output_path(args.out, RESULT_FORMATS, "--out")
     check_output_path(args.plot, FIGURE_FORMATS, "--plot")
     scene = load(args.file, _overrides(args.set))
-    try:
-        pipeline.model(scene)
+    try:        # derives the equations only when no backend's cached model can be restored
+        result = pipeline.run(scene, args.t_end, args.dt_out, args.solver, args.rtol, args.atol,
+                              progress=False if args.quiet else None, backend=args.backend)
     except IllPosedError:
         analysis = pipeline.check(scene)
         print(f"{args.file}: not well-posed, nothing simulated (see 'multipole check {args.file}')", file=sys.stderr)
         for d in analysis.errors:
             print("  " + str(d).replace("\n", "\n  "), file=sys.stderr)
         return 1
-    try:
-        result = pipeline.run(scene, args.t_end, args.dt_out, args.solver, args.rtol, args.atol,
-                              progress=False if args.quiet else None, backend=args.backend)
     except MultipoleError as exc:
         raise _located(exc, scene) from None
     except KeyboardInterrupt as exc:        # results so far are discarded: no file looks complete

@@ -30,8 +30,15 @@ from .simulate import Result, simulate
 
 _MODELS: dict = {}
 _PRUNED: dict = {}
+#: backends' compiled models restored from the disk cache in this process (see :func:`run`)
+_RESTORED: dict = {}
+#: how many times this process derived a scene's equations (:func:`check`); :func:`run` reports in
+#: ``stats["equations_derived"]`` whether it did
+_DERIVATIONS = [0]
 #: how many scenes' derived equations :func:`pruned` keeps in memory
 MAX_PRUNED = 16
+#: the analysis of the last :func:`check` of each scene digest (at most :data:`MAX_PRUNED` of them)
+_CHECKED: dict = {}
 
 
 def check(scene: Scene) -> Analysis:
@@ -42,6 +49,7 @@ def check(scene: Scene) -> Analysis:
     loops, a singular loop, a source that can deliver no power).  The assembled equations are kept
     in ``.assembled`` for :func:`equations`.
     """
+    _DERIVATIONS[0] += 1
     try:
         flat = flatten(scene.network)
     except MultipoleError as exc:
@@ -55,12 +63,17 @@ def check(scene: Scene) -> Analysis:
     context = Context(analysis, scene, lambda: assemble(analysis, scene.name))
     analysis.diagnostics = run_checks(context)
     analysis.assembled = context.equations() if analysis.ok else None
+    if len(_CHECKED) >= MAX_PRUNED:
+        del _CHECKED[next(iter(_CHECKED))]
+    _CHECKED[scene.digest] = analysis
     return analysis
 
 
 def equations(scene: Scene, analysis: Analysis | None = None) -> Equations:
-    """The explicit ODE; :class:`IllPosedError` if the check found errors."""
-    analysis = analysis or check(scene)
+    """The explicit ODE; :class:`IllPosedError` if the check found errors.  The analysis of this
+    scene's last :func:`check` in this process is used if there was one (``multipole check`` then a
+    model build derives the equations once: the 8-link mechanism's check took as long as its build)."""
+    analysis = analysis or _CHECKED.get(scene.digest) or check(scene)
     eq = analysis.assembled or assemble(analysis, scene.name)
     for out in scene.outputs:
         try:
@@ -143,19 +156,19 @@ def _code_hash() -> str:
     return h.hexdigest()
 
 
-def _cache_path(key) -> Path | None:
-    """Where the model for ``key`` is kept: ``<cache>/model-<digest>.entry`` (None: no disk cache)."""
+def _cache_path(key, prefix: str = "model") -> Path | None:
+    """Where the model for ``key`` is kept: ``<cache>/<prefix>-<digest>.entry`` (None: no disk cache)."""
     folder = cache.root()
     folder = cache.private_dir(folder) if folder is not None else None
     if folder is None:
         return None
     digest = hashlib.sha256(repr((key, _code_hash())).encode()).hexdigest()
-    return folder / f"model-{digest[:32]}.entry"
+    return folder / f"{prefix}-{digest[:32]}.entry"
 
 
-def _cache_slot(key):
+def _cache_slot(key, prefix: str = "model"):
     """``(path, user key)`` of the disk cache entry for ``key``, or None without a usable cache."""
-    path = _cache_path(key)
+    path = _cache_path(key, prefix)
     secret = cache.user_key(path.parent) if path is not None else None
     return (path, secret) if secret is not None else None
 
@@ -221,14 +234,13 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
         raise NetlistError("no_t_end", "no simulation time given", "add simulate: {t_end: ...} or use --t-end",
                            scene.path)
     backend = backend or opts.get("backend", "numpy")
+    derivations = _DERIVATIONS[0]
     if backend != "numpy":
         from .backends import get_backend
-        eq, outs, record = pruned(scene, outputs, prune)
-        _warn(_warning_lines(eq.analysis))
-        result = get_backend(backend)(eq, outs, opts["t_end"], opts.get("dt_out"),
-                                      opts.get("solver", "auto"), opts.get("rtol", 1e-6), opts.get("atol", 1e-9),
-                                      opts.get("max_step", float("inf")), progress)
-        result.stats["states_pruned"] = record.states_pruned
+        options = (opts["t_end"], opts.get("dt_out"), opts.get("solver", "auto"), opts.get("rtol", 1e-6),
+                   opts.get("atol", 1e-9), opts.get("max_step", float("inf")), progress)
+        result = _run_backend(get_backend(backend), scene, outputs, prune, options)
+        result.stats["equations_derived"] = _DERIVATIONS[0] > derivations
         return result
     m = model(scene, outputs, prune)
     _warn(m.meta.get("warnings", []))
@@ -238,7 +250,64 @@ def run(scene: Scene, t_end=None, dt_out=None, solver=None, rtol=None, atol=None
     result.stats["model_cached"] = m.cached
     pruned_states = m.meta.get("pruning", {}).get("states_pruned", 0)
     result.stats["states_pruned"] = pruned_states if isinstance(pruned_states, int) else 0
+    result.stats["equations_derived"] = _DERIVATIONS[0] > derivations
     return result
+
+
+def _run_backend(backend, scene: Scene, outputs, prune: bool, options) -> Result:
+    """A run on a backend other than numpy.  A backend that can describe its compiled model
+    (:meth:`~multipole.backends.Backend.describe`, numba) keeps the description in the disk cache
+    under the scene's digest, the outputs, ``prune`` and the code's hash (prefix ``<backend>-``,
+    authenticated like every entry), so that another process restores the model
+    (:meth:`~multipole.backends.Backend.restore`) without deriving the equations again.  Equations
+    already derived in this process (:func:`pruned`) are run as they are (the backend keeps its
+    model on them), without reading or writing the disk entry."""
+    keeps = all(hasattr(backend, a) for a in ("name", "describe", "restore", "run_model"))   # a plain callable does not
+    from . import __version__
+    key = (getattr(backend, "name", None), __version__, scene.digest, tuple(outputs) if outputs is not None else None,
+           bool(prune))
+    entry = _RESTORED.get(key) if keeps else None
+    in_memory = (scene.digest, key[3], bool(prune)) in _PRUNED      # equations derived in this process: used
+    slot = _cache_slot(key, backend.name) if keeps and entry is None and not in_memory else None
+    if slot is not None:
+        entry = _restore_backend_entry(backend, *slot)
+    if entry is not None:
+        _RESTORED[key] = entry
+        model, warning_lines, states_pruned = entry
+        _warn(warning_lines)
+        result = backend.run_model(model, *options)
+        result.stats["states_pruned"] = states_pruned
+        return result
+    eq, outs, record = pruned(scene, outputs, prune)
+    warning_lines = _warning_lines(eq.analysis)
+    _warn(warning_lines)
+    result = backend(eq, outs, *options)
+    result.stats["states_pruned"] = record.states_pruned
+    data = backend.describe(eq, outs) if slot is not None and result.stats.get("backend") == backend.name else None
+    if data is not None:
+        payload = {"model": data, "warnings": warning_lines, "states_pruned": record.states_pruned}
+        try:
+            cache.write_entry(slot[0], slot[1], json.dumps(payload).encode())
+        except OSError:
+            pass                # a full or read-only disk must not stop a simulation
+    return result
+
+
+def _restore_backend_entry(backend, path: Path, secret: bytes):
+    """``(model, warning lines, states pruned)`` from the entry at ``path``, or None: an entry that is
+    missing, fails its MAC (never executed) or does not rebuild is ignored (and rewritten)."""
+    payload = cache.read_entry(path, secret)
+    if payload is None:
+        return None
+    try:
+        data = json.loads(payload.decode())
+        if not (isinstance(data, dict) and _is_str_list(data.get("warnings"))
+                and isinstance(data.get("states_pruned"), int) and not isinstance(data["states_pruned"], bool)):
+            return None
+        model = backend.restore(data.get("model"))      # authenticated: written by this user's multipole
+    except Exception:           # noqa: BLE001 -- whatever is wrong with an entry, it is rebuilt
+        return None
+    return (model, data["warnings"], data["states_pruned"]) if model is not None else None
 
 
 def _warning_lines(analysis) -> list:

@@ -935,7 +935,7 @@ def sample_outputs(model, t_grid, states) -> np.ndarray:
 STATS_KEYS = ("backend", "steps", "rejected", "nfev", "njev", "nlu", "segments", "events", "rhs_calls",
               "jac_calls", "newton_iterations", "newton_solves", "newton_failures", "collocation_iterations",
               "translate_time", "compile_time", "run_time", "wall_time", "compile_cached", "model_cached",
-              "states_pruned")
+              "states_pruned", "equations_derived")
 
 
 def solver_stats(counted: dict, **more) -> dict:

@@ -325,11 +325,14 @@ def test_output_grid_is_the_numpy_backends(nb):
 
 
 @pytest.fixture
-def fresh_equations(monkeypatch):
+def fresh_equations(monkeypatch, tmp_path):
     """Equations derived anew in this test: pipeline.pruned remembers them per scene in the process,
     and the numba backend its compiled model on them, so a scene an earlier test ran on numba would
-    never reach the patched compiler."""
+    never reach the patched compiler; nor would a model restored from the disk cache (an empty one
+    here) or from memory."""
     monkeypatch.setattr(pipeline, "_PRUNED", {})
+    monkeypatch.setattr(pipeline, "_RESTORED", {})
+    monkeypatch.setenv("MULTIPOLE_CACHE", str(tmp_path / "cache"))
 
 
 def _numba_cannot_compile(nb, monkeypatch):

@@ -27,9 +27,11 @@ def rlc_vc(t):
 
 
 @pytest.fixture
-def counted(monkeypatch):
-    """Counters of equation assemblies and of numba translations, with the in-process memo empty."""
+def counted(monkeypatch, tmp_path):
+    """Counters of equation assemblies and of numba translations, with the in-process memo and the
+    disk cache empty (a numba model restored from the disk cache derives nothing at all)."""
     from multipole.backends import numba_backend
+    monkeypatch.setenv("MULTIPOLE_CACHE", str(tmp_path / "cache"))
     calls = {"assemble": 0, "translate": 0}
 
     def counting(name, fun):

@@ -122,10 +122,27 @@ class Backend:
         from ..codegen import compile_model
         return compile_model(equations, outputs)
 
+    def describe(self, equations, outputs) -> dict | None:
+        """What :meth:`restore` needs to rebuild the model :meth:`compile` made for ``equations`` in
+        another process without deriving them again, as JSON data (``pipeline.run`` keeps it in the
+        authenticated model cache, docs/backends.md "Model cache"); None: nothing to keep (the
+        default)."""
+        return None
+
+    def restore(self, data):
+        """The model described by ``data`` (from :meth:`describe`, authenticated by the cache), or
+        None if it cannot be rebuilt (the caller then derives and compiles as usual)."""
+        return None
+
+    def run_model(self, model, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9, max_step=float("inf"),
+                  progress=None):
+        """Simulate a compiled ``model`` from 0 to ``t_end`` [s] with the shared driver."""
+        from ..simulate import simulate
+        return simulate(model, t_end, dt_out, solver, rtol, atol, max_step, progress, integrator=self.integrator)
+
     def __call__(self, equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9,
                  max_step=float("inf"), progress=None):
         """Simulate ``equations`` from 0 to ``t_end`` [s]: :meth:`compile`, then the shared driver."""
-        from ..simulate import simulate
         outputs = list(outputs)
         try:
             model = self.compile(equations, outputs)
@@ -135,7 +152,7 @@ class Backend:
             if self.name == "numpy":
                 raise
             return fallback(self.name, equations, outputs, exc, t_end, dt_out, solver, rtol, atol, max_step, progress)
-        return simulate(model, t_end, dt_out, solver, rtol, atol, max_step, progress, integrator=self.integrator)
+        return self.run_model(model, t_end, dt_out, solver, rtol, atol, max_step, progress)
 
 
 class Refused(Exception):

@@ -725,6 +725,50 @@ class NumbaBackend(Backend):
         equations._numba_model = (tuple(outputs), model)
         return model
 
+    def describe(self, equations, outputs) -> dict | None:
+        """The model :meth:`compile` made for ``equations`` as data for :meth:`restore` in another
+        process: the generated source (which holds the model's functions, switching functions and
+        monitors) and what the driver reads besides (names, units, initial state, switch texts)."""
+        mine = getattr(equations, "_numba_model", None)
+        if mine is None or mine[0] != tuple(outputs):
+            return None
+        model = mine[1]
+        source, switch_text = translate(equations, outputs)      # remembered on the equations
+        return {"kernels": _kernel_digest(), "source": source, "switch_text": list(switch_text),
+                "name": model.name, "state_names": list(model.state_names), "outputs": list(model.output_names),
+                "units": list(model.output_units), "x0": [float(v) for v in model.x0]}
+
+    def restore(self, data) -> NumbaModel | None:
+        """The model :meth:`describe` described, its functions loaded from numba's cache (compiled if
+        missing), without the equations; None if ``data`` does not have the shape :meth:`describe`
+        writes, was made for other kernels (or numba, or Python), or fails to load."""
+        if not _valid_description(data) or data["kernels"] != _kernel_digest():
+            return None
+        start = time.perf_counter()
+        try:
+            module = load(data["source"])
+            n, switch_text = len(data["state_names"]), data["switch_text"]
+            if module.N_SWITCHES != len(switch_text):
+                return None
+            cached = _compile(module, n, len(switch_text))
+        except Exception:           # noqa: BLE001 -- whatever is wrong with an entry, it is rebuilt
+            return None
+        described = types.SimpleNamespace(name=data["name"], state_names=data["state_names"],
+                                          units=dict(zip(data["outputs"], data["units"])))
+        return NumbaModel(described, data["outputs"], module, switch_text, np.array(data["x0"], dtype=float), 0.0,
+                          time.perf_counter() - start, cached)
+
+
+def _valid_description(data) -> bool:
+    """True if ``data`` has the shape :meth:`NumbaBackend.describe` writes."""
+    def strings(v):
+        return isinstance(v, list) and all(isinstance(s, str) for s in v)
+    return (isinstance(data, dict) and all(isinstance(data.get(k), str) for k in ("kernels", "source", "name"))
+            and all(strings(data.get(k)) for k in ("switch_text", "state_names", "outputs", "units"))
+            and len(data["units"]) == len(data["outputs"]) and isinstance(data.get("x0"), list)
+            and len(data["x0"]) == len(data["state_names"])
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in data["x0"]))
+
 
 def _initial_state(equations) -> np.ndarray:
     """``equations.initial_values()`` as an array, worked out once per equations object."""

@@ -423,3 +423,21 @@ def test_capstan_limit_on_a_planar_roll():
         at = pipeline.run(scene(text), progress=False, t_end=when).outputs
         assert at[f"roll.{tight}"][-1] / at[f"roll.{slack}"][-1] == pytest.approx(
             math.exp(0.05 * at["roll.wrap"][-1]), rel=1e-6)
+
+
+# -- the compressor scene -----------------------------------------------------------------------
+
+def test_compressor_belt_length_is_invariant_while_the_tensioner_swings():
+    """Compressor (Ebert 8.2) through the clutch engagement at 2 s: the closed belt's length, the
+    spans' free lengths plus the wrapped arcs r*beta of the three rolls, stays constant while the
+    tensioner lever swings; the belt turns once around: beta_M + beta_P - beta_T = 2 pi (the
+    tensioner roll is wrapped the other way round)."""
+    outs = ["tight.free", "span2.free", "span3.free", "M.wrap", "P.wrap", "T.wrap", "lever.phi", "tight.F"]
+    res = pipeline.run(load(BELTS / "compressor.yaml"), progress=False, t_end=3.0, outputs=outs)
+    o = res.outputs
+    assert np.ptp(o["lever.phi"]) > 0.05 and o["tight.F"].max() > 1000     # the engagement's peak
+    length = o["tight.free"] + o["span2.free"] + o["span3.free"] \
+        + 0.05 * o["M.wrap"] + 0.15 * o["P.wrap"] + 0.03 * o["T.wrap"]
+    # measured 1.0e-11 m (rtol 1e-6 of the run: the free lengths come from the same integrated states)
+    np.testing.assert_allclose(length, length[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(o["M.wrap"] + o["P.wrap"] - o["T.wrap"], 2 * math.pi, rtol=0, atol=1e-9)

@@ -491,7 +491,9 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     :class:`SimulationError` (a :class:`~multipole.errors.RunError`) for a run that fails,
     naming the element, the variable and the time: an arithmetic error in the model (``1/t`` at
     t = 0, the root of a negative number, an overflow), Newton's method failing in an algebraic
-    loop, a step the integrator cannot take, a state or output that becomes infinite or NaN.
+    loop, a step the integrator cannot take, a state or output that becomes infinite or NaN, and a
+    stop monitor of an element that fired (:class:`~multipole.network.Monitor`: the error has the
+    monitor's code).  The findings of the other monitors are listed in ``Result.monitors``.
     Warnings of numpy and scipy during the run are collected in ``Result.stats["warnings"]``
     instead of being printed; a run the stiffness estimate says takes more than
     :data:`MANY_STEPS` steps is announced with a :class:`~multipole.errors.LongRunWarning`.

@@ -166,7 +166,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
 @element("planar_roll", "circular band roll on a planar bearing (Ebert 4.4.4, corrected): the roll of band_roll "
          "(no-slip winding at radius r, inertia J) whose axis is the planar port a; the spans pull its centre "
          "through the port c",
-         {"a": f"bearing ({_PLANAR}): the axis, e.g. a lever's output; frame-fixed at (x, y) if not connected; "
+         {"a": f"bearing ({_PLANAR}): the axis, e.g. a lever's output; frame-fixed at (x1, y1) if not connected; "
                "its phi component takes the pin friction torque (none when mu = 0)",
           "c": f"centre of the roll seen by the spans ({_PLANAR}): join it to the spans' p1/p2 ports; it moves "
                "with a, and the span forces on it act on a",
@@ -187,8 +187,8 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
           Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True),
           Param("mu_c", "-", "contact friction for the capstan monitor (None: no monitor): reports a run "
                 "where one tension exceeds e^(mu_c*wrap) times the other", None),
-          Param("x", "m", "frame position x of the axis when a is not connected", 0.0),
-          Param("y", "m", "frame position y of the axis when a is not connected", 0.0)],
+          Param("x1", "m", "frame position x of the axis when a is not connected", 0.0),
+          Param("y1", "m", "frame position y of the axis when a is not connected", 0.0)],
          {"phi": "rad: roll angle", "omega": "rad/s: angular velocity", "F1": "N: band tension at e1",
           "F2": "N: band tension at e2", "lr1": "m: band wound off into the span at e1, "
           "w r [(phi - phi0) - (gamma1 - gamma1(0))]", "lr2": "m: band wound off at e2, "
@@ -198,7 +198,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
                       "its housing)",
           "wrap": "rad: wrap angle, from the contact where the band runs on to the one where it leaves "
                   "(in (0, 2 pi) at t = 0, continuous; the monitor band_lifts_off reports it falling to 0)"})
-def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x, y):
+def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x1, y1):
     """Circular roll on a planar bearing [r in m, J in kg*m^2, angles in rad, m in kg]."""
     # the 1-D roll with its parameters bound to this element's (a scene's expression like
     # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense)
@@ -245,7 +245,7 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x, y):
     signals["beta"] = "wrap.q"
     xa, ya, pa = _S("xa"), _S("ya"), _S("pa")
     params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": int(w) if w in (1, -1) else w, "m": m,
-              "gx": gx, "gy": gy, "mu": mu, "r_pin": r_pin, "x": x, "y": y} | ({} if mu_c is None else {"mu_c": mu_c})
+              "gx": gx, "gy": gy, "mu": mu, "r_pin": r_pin, "x1": x1, "y1": y1} | ({} if mu_c is None else {"mu_c": mu_c})
     q = {"phi": Quantity(lambda V: V.x("R.tap.q")), "omega": Quantity(lambda V: V.f("R.drive")),
          "F1": Quantity(lambda V: V.e("R.T1.a")), "F2": Quantity(lambda V: V.e("R.T2.a")),
          "lr1": Quantity(lambda V: V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap1.q"))),
@@ -260,7 +260,7 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x, y):
     return Network("planar_roll", children, connections, ports, params, q, signals=signals,
                    bundles={"a": "planar", "c": "planar", "e1": "band", "e2": "band"},
                    positions={"c.x": xa, "c.y": ya, "c.phi": pa},
-                   reads={"xa": ("a.x", _S("x")), "ya": ("a.y", _S("y")), "pa": ("a.phi", 0),
+                   reads={"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1")), "pa": ("a.phi", 0),
                           "g1": ("e1.gamma", 0), "g2": ("e2.gamma", 0)},
                    fixed=("a.x", "a.y", "a.phi", "e1.gamma", "e2.gamma"),
                    sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="line"),

@@ -273,7 +273,7 @@ parameters: {w: 10.0, F0: 200.0, EA: 1.0e5, cd: 20.0, rate: 25.0}
 elements:
   motor: {type: speed_source, value: w}
   p1: {type: planar_roll, r: 0.05, J: 1.0e-3}
-  p2: {type: planar_roll, r: 0.1, J: 4.0e-3, omega0: w*0.05/0.1, x: 0.8}
+  p2: {type: planar_roll, r: 0.1, J: 4.0e-3, omega0: w*0.05/0.1, x1: 0.8}
   tight: {type: planar_band, EA: EA, cd: cd, F0: F0, r1: 0.1, s1: 1, r2: 0.05, s2: -1}
   slack: {type: planar_band, EA: EA, cd: cd, F0: F0, r1: 0.05, s1: 1, r2: 0.1, s2: -1}
   load: {type: torque_source, value: -rate*t}

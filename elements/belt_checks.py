@@ -55,9 +55,12 @@ def _value(ctx, element: str, name: str):
 
 
 def _span(ctx, el):
-    """(l, l0, EA) of a span, or None."""
+    """(l, l0, EA) of a span (l0 not given: l), or None."""
+    if ctx.scene is None or el not in ctx.scene.network.children:
+        return None
     l, l0, EA = (_value(ctx, el, n) for n in ("l", "l0", "EA"))
-    l0 = l if l0 is None else l0
+    if l0 is None and ctx.scene.network.children[el].params.get("l0") is None:
+        l0 = l
     return None if None in (l, l0, EA) else (l, l0, EA)
 
 

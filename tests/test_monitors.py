@@ -78,6 +78,17 @@ def test_a_monitor_fires_at_each_downward_crossing_at_the_closed_form_time(backe
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_a_monitor_negative_at_the_start_fires_only_when_it_falls_again(backend):
+    """x0 - x starts at x0 - A < 0, rises through 0 at acos(x0/A)/w (not reported) and falls where x
+    climbs back through x0, at (2 pi - acos(x0/A))/w + n 2 pi/w."""
+    x0, t_end = 0.05, 3.0 * PERIOD
+    res = run(oscillator(x0, expr=sp.Symbol("x0") - sp.Symbol("x")), t_end, backend)
+    expected = [(2 * math.pi - math.acos(x0 / A)) / W + n * PERIOD for n in range(3)]
+    times = np.array([t for t, *_ in res.monitors])
+    assert len(times) == 3 and np.max(np.abs(times - expected)) <= event_tolerance(x0), (times, expected)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_a_monitor_does_not_change_the_integration(backend):
     """Same samples as the run without a monitor (to the method's error) and bounded work: each of
     the six crossings (three down, three up) restarts the method once, nothing more."""

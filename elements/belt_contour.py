@@ -142,6 +142,86 @@ class Contour:
         k = int(np.argmin(th))
         return cls(np.roll(th, -k), np.roll(r, -k), source)
 
+    @classmethod
+    def from_arc(cls, theta, r, source: str = "arc", lines=None) -> "Contour":
+        """A closed contour from an engaged arc (a synthesis result: theta [rad] increasing over less
+        than a turn, r [m]): the arc's support function is continued over the normals it does not
+        cover by the polynomial that matches p and its first four derivatives at both ends (from a
+        local fit to the arc), plus the bulge that keeps the closing part furthest from a cusp or the
+        axis; its convexity is checked like any contour's.  The arc's own points are kept; the closing
+        part adds points at the arc's mean normal spacing."""
+        th, rr = np.asarray(theta, dtype=float), np.asarray(r, dtype=float)
+        if th.ndim != 1 or th.shape != rr.shape or len(th) < 4 or np.any(np.diff(th) <= 0) or np.any(rr <= 0) \
+                or th[-1] - th[0] >= TWO_PI:
+            raise _err("bad_contour", f"{source}: an arc needs at least 4 points, theta increasing over less than a "
+                       "turn and r > 0", "give the engaged arc as the synthesis wrote it")
+        arc = CubicSpline(th, rr)
+        d1, d2 = arc(th, 1), arc(th, 2)
+        den = rr * rr + 2 * d1 * d1 - rr * d2
+        if np.any(den <= 0):
+            k = int(np.flatnonzero(den <= 0)[0])
+            raise _err("contour_not_convex", f"{source}: the arc is not convex at theta = {th[k]:.6g} rad",
+                       "give a convex arc")
+        nus = th - np.arctan2(d1, rr)                          # normals of the arc's points, increasing
+        ps = rr * np.cos(th - nus)
+        na, nb = float(nus[0]), float(nus[-1])
+        gap = na + TWO_PI - nb
+        if gap <= 0:
+            raise _err("contour_not_closed", f"{source}: the arc's normals turn by more than a turn",
+                       "give one arc of a convex contour")
+        # p and its first ORDER derivatives at both ends, from a degree-6 fit to the arc's last points
+        # (C4 joins: the series the elements use then needs far fewer harmonics than with C2 joins)
+        order, m = 4, max(8, min(40, len(th) // 4))
+
+        def derivs(x, y, at):
+            fit = np.polynomial.Polynomial.fit(x - at, y, min(6, len(x) - 1)).convert()
+            return [float(fit.deriv(i)(0.0)) if i else float(fit(0.0)) for i in range(order + 1)]
+
+        Db, Da = derivs(nus[-m:], ps[-m:], nb), derivs(nus[:m], ps[:m], na)
+        # Hermite polynomial in s = (nu - nb)/gap on [0, 1] matching them at s = 0 (nb) and s = 1 (na + 2 pi)
+        deg = 2 * order + 1
+        rows, rhs = [], []
+        for at, D in ((0.0, Db), (1.0, Da)):
+            for i in range(order + 1):
+                rows.append([math.perm(j, i) * at ** (j - i) if j >= i else 0.0 for j in range(deg + 1)])
+                rhs.append(D[i] * gap ** i)
+        basis = np.linalg.solve(np.array(rows), np.array(rhs))
+        pa, pb = Da[0], Db[0]
+        n = max(64, int(math.ceil(gap / ((nb - na) / (len(th) - 1)))))
+        sg = np.linspace(0.0, 1.0, n + 1)[1:-1]
+
+        # plus (c0 + c1 (s - 1/2)) s^5 (1 - s)^5 (no change at the ends): the bulge that keeps p and the
+        # radius of curvature p + p'' furthest from 0 over the closing part
+        P = np.polynomial.polynomial
+        bump = P.polypow([0, 1, -1], order + 1)                           # s^5 (1 - s)^5, low order first
+        tilt = P.polymul(bump, [-0.5, 1])
+
+        def closing(c0, c1, at):
+            coef = P.polyadd(P.polyadd(basis, c0 * bump), c1 * tilt)
+            return (P.polyval(at, coef), P.polyval(at, P.polyder(coef)) / gap,
+                    P.polyval(at, P.polyder(coef, 2)) / gap ** 2)
+
+        def margin(c, at):
+            p, _, ddp = closing(*c, at)
+            return min(np.min(p), np.min(p + ddp))
+
+        coarse, scale = np.linspace(0.0, 1.0, 201)[1:-1], 4 ** (order + 1) * max(pa, pb)
+        grid = [(c0 * scale, c1 * scale) for c0 in np.linspace(-1.0, 4.0, 41) for c1 in np.linspace(-8.0, 8.0, 41)]
+        p, dp, ddp = closing(*max(grid, key=lambda c: margin(c, coarse)), sg)
+        # convex, and clear of the axis (a contour through the axis has no polar form)
+        bad = np.flatnonzero((p + ddp <= 0) | (p <= 0.1 * rr.min()))
+        if len(bad):
+            k = bad[np.argmin(np.minimum(p[bad] + ddp[bad], p[bad]))]
+            raise _err("contour_not_closed", f"{source}: the closing part the arc's ends call for is not convex "
+                       f"or passes the axis closer than a tenth of the arc's smallest radius (at the normal angle "
+                       f"{float(nb + sg[k] * gap):.4g} rad: distance p = {p[k]:.4g} m, radius of curvature "
+                       f"{p[k] + ddp[k]:.4g} m)",
+                       "synthesise a longer arc, or close the contour by hand (a whole turn in the table)")
+        tg, rg = polar_from_support(p, dp, nb + sg * gap)
+        tg = th[-1] + np.mod(tg - th[-1], TWO_PI)                    # after the arc's last angle
+        return cls(np.concatenate([th, tg]), np.concatenate([rr, rg]), source,
+                   None if lines is None else list(lines) + [f"closing part {k + 1}" for k in range(len(tg))])
+
     # -- evaluation ------------------------------------------------------------------------------
     def radius(self, theta, nu: int = 0):
         """r(theta) [m] or its ``nu``-th derivative [m/rad^nu], periodic."""
@@ -319,10 +399,11 @@ def polar_from_support(p, dp, nu):
 
 # -- the table format ----------------------------------------------------------------------------
 
-def read_table(path) -> Contour:
+def read_table(path, arc: bool = False) -> Contour:
     """A contour from a CSV table: a header line ``theta [rad], r [m]`` (any text not starting with a
     number), then one ``theta, r`` row per point, by increasing theta over one turn; ``#`` starts a
-    comment line.  Errors name the file and the line."""
+    comment line.  ``arc``: the table is an engaged arc (a synthesis result), completed by
+    :meth:`Contour.from_arc`.  Errors name the file and the line."""
     path = Path(path)
     name = str(path)
     try:
@@ -359,7 +440,10 @@ def read_table(path) -> Contour:
         lines.append(k)
         if len(theta) > MAX_ROWS:
             raise _err("bad_contour_table", f"{name}: more than {MAX_ROWS} rows", "a few thousand rows suffice")
-    return Contour(np.array(theta), np.array(r), name, [n for n in lines if n is not None])
+    rows = [n for n in lines if n is not None]
+    if arc:
+        return Contour.from_arc(np.array(theta), np.array(r), name, rows)
+    return Contour(np.array(theta), np.array(r), name, rows)
 
 
 def write_table(path, theta, r, comment: str = "") -> None:
@@ -372,13 +456,13 @@ def write_table(path, theta, r, comment: str = "") -> None:
             fh.write(f"{float(t)!r}, {float(v)!r}\n")
 
 
-def as_contour(value) -> Contour:
-    """A Contour from a Contour, a table path, a positive number (a circle of that radius [m]) or a
-    Python callable r(theta)."""
+def as_contour(value, arc: bool = False) -> Contour:
+    """A Contour from a Contour, a table path (``arc``: an engaged arc to complete), a positive number
+    (a circle of that radius [m]) or a Python callable r(theta)."""
     if isinstance(value, Contour):
         return value
     if isinstance(value, (str, os.PathLike)):
-        return read_table(value)
+        return read_table(value, arc)
     if isinstance(value, (int, float, sp.Number)) and not isinstance(value, bool):
         return Contour.circle(float(value))
     if callable(value):
@@ -393,8 +477,8 @@ _CONTOUR_DOC = ("contour table: CSV 'theta [rad], r [m]' (polar, roll frame, one
                 "to the netlist file (Python: also a Contour, a callable r(theta) or a number: a circle)")
 
 
-def _curve(kind: str, sides: int, contour, J, phi0, omega0, w, sides_of, tol, mu, r_pin, wrap):
-    c = as_contour(contour)
+def _curve(kind: str, sides: int, contour, arc, J, phi0, omega0, w, sides_of, tol, mu, r_pin, wrap):
+    c = as_contour(contour, bool(arc))
     try:
         tol = float(tol)
     except TypeError:
@@ -408,7 +492,7 @@ def _curve(kind: str, sides: int, contour, J, phi0, omega0, w, sides_of, tol, mu
     phi = sp.Symbol("phi")
 
     def nu(k, angle):
-        return sp.Symbol(f"g{k}") + int(sides_of[k - 1]) * sp.pi / 2 - angle
+        return sp.Symbol(f"g{k}") + sp.Float(int(sides_of[k - 1]) * math.pi / 2) - angle   # no symbolic pi: sympy would reason on it
 
     def contact(k):
         lever = _sym_series(a, b, nu(k, phi), False, drop)
@@ -425,6 +509,8 @@ def _curve(kind: str, sides: int, contour, J, phi0, omega0, w, sides_of, tol, mu
 
 
 _CURVE_PARAMS = [Param("contour", "", _CONTOUR_DOC, kind="file"),
+                 Param("arc", "", "the table is an engaged arc (a synthesis result): completed to a closed convex "
+                       "contour by a C2 closing part", False, "bool"),
                  Param("J", "kg*m^2", "moment of inertia about the axis", 1e-3, positive=True),
                  Param("phi0", "rad", "initial roll angle", 0.0),
                  Param("omega0", "rad/s", "initial angular velocity", 0.0),
@@ -446,18 +532,18 @@ _CURVE_QTY = _ROLL_QTY | {"h1": "m: lever arm of the band force at e1 (support f
          + _FRICTION + [Param("wrap", "rad", "wrap angle for the radial load |F1 e1 + F2 e2| (angle between the "
                                              "spans' directions: pi - wrap)", math.pi, positive=True)],
          _CURVE_QTY | {"F2": "N: band tension at e2", "h2": "m: lever arm of the band force at e2"})
-def curve_roll(contour, J, phi0, omega0, w, side1, side2, tol, mu, r_pin, wrap):
+def curve_roll(contour, arc, J, phi0, omega0, w, side1, side2, tol, mu, r_pin, wrap):
     """Curve roll [contour in m, J in kg*m^2, angles in rad]."""
-    return _curve("curve_roll", 2, contour, J, phi0, omega0, w, (side1, side2), tol, mu, r_pin, wrap)
+    return _curve("curve_roll", 2, contour, arc, J, phi0, omega0, w, (side1, side2), tol, mu, r_pin, wrap)
 
 
 @element("curve_drum", "band drum with a convex curve contour (Ebert 4.4.5 derived): one band end fixed on it; "
          "winds band in or pays it out at e1 with the contour's lever arm (a band cam)",
          {"e1": f"band port ({_BAND})", "drive": "1-D rotational port on the drum"},
          _CURVE_PARAMS + [Param("side1", "-", _SIDE.format(k=1), 1.0)] + _FRICTION, _CURVE_QTY)
-def curve_drum(contour, J, phi0, omega0, w, side1, tol, mu, r_pin):
+def curve_drum(contour, arc, J, phi0, omega0, w, side1, tol, mu, r_pin):
     """Curve drum [contour in m, J in kg*m^2, angles in rad]."""
-    return _curve("curve_drum", 1, contour, J, phi0, omega0, w, (side1,), tol, mu, r_pin, None)
+    return _curve("curve_drum", 1, contour, arc, J, phi0, omega0, w, (side1,), tol, mu, r_pin, None)
 
 
 # -- static check --------------------------------------------------------------------------------

@@ -395,3 +395,42 @@ def test_an_inconsistent_side_is_reported_and_the_scene_is_consistent():
     found = codes(contour_triggers()["curve_roll_side"][0]())
     assert [d.elements for d in found] == [["wheel1", "top"]]
     assert len(codes(load(BELTS / "toothed_belt.yaml", {"wheel2.w": -1}))) == 2
+
+
+# -- engaged arcs (synthesis results) ----------------------------------------------------------------
+
+def test_an_engaged_arc_is_completed_without_changing_the_arc():
+    """An arc of the ellipse (theta 0.3 .. 2.5 rad, 500 points) completed by the C2 closing part: over
+    the normals the arc covers, the support function is the ellipse's (measured 2e-12 m; the
+    periodic spline and the arc's own spline agree there), and the closed contour is convex."""
+    th = np.linspace(0.3, 2.5, 500)
+    c = Contour.from_arc(th, _ellipse_r(th), "ellipse arc")
+    nu = np.linspace(c.normal_angle(0.3), c.normal_angle(2.5), 301)
+    np.testing.assert_allclose(c.support(nu), _ellipse_support(nu), rtol=0, atol=1e-10)
+    assert c.kappa_min > 0
+    with pytest.raises(ModelError) as exc:              # an arc whose ends cannot be joined convexly
+        Contour.from_arc(th, 0.05 + 0.2 * (th - 0.3) ** 2, "spiral")
+    assert exc.value.code in ("contour_not_closed", "contour_not_convex")
+
+
+def test_transfer_function_round_trip_through_an_engaged_arc(tmp_path):
+    """The cam of X(phi) = h0 phi - (A/2) sin 2 phi synthesised only over the normals the band uses
+    (a turn of 200 deg plus 10 deg each side), written as an arc table, read with arc: true and
+    turned by 200 deg: the band travel is X to 1e-8 of the stroke."""
+    h0, amp, span = 0.1, 0.02, np.radians(200.0)
+    nu0 = -np.pi / 2
+    nu = np.linspace(nu0 - span - np.radians(10), nu0 + np.radians(10), 801)
+    p = h0 - amp * np.cos(2 * (nu0 - nu))
+    dp = -2 * amp * np.sin(2 * (nu0 - nu))
+    from elements.belt_contour import polar_from_support
+    th, r = polar_from_support(p, dp, nu)
+    th = np.unwrap(th)
+    order = np.argsort(th)
+    write_table(tmp_path / "arc.csv", th[order], r[order], "engaged arc")
+    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: arc.csv, arc: true, J: 0.01, side1: -1}").replace(
+        "value: -w", "value: w").replace("t_end: 1.0", f"t_end: {float(span) / 0.5!r}").replace("gamma: 0.3", "gamma: 0.0")
+    res = pipeline.run(loads(text, str(tmp_path / "arc.yaml")), progress=False, outputs=["rope.stretch", "drum.phi"])
+    phi = res.outputs["drum.phi"]
+    X = h0 * phi - amp / 2 * np.sin(2 * phi)
+    assert phi[-1] == pytest.approx(span, rel=1e-9)
+    np.testing.assert_allclose(0.01 - res.outputs["rope.stretch"], X, rtol=0, atol=1e-8 * X[-1])

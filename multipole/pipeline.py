@@ -30,7 +30,8 @@ from .simulate import Result, simulate
 
 _MODELS: dict = {}
 _PRUNED: dict = {}
-#: backends' compiled models restored from the disk cache in this process (see :func:`run`)
+#: backends' compiled models restored from the disk cache in this process (see :func:`run`; the
+#: last :data:`MAX_PRUNED` of them)
 _RESTORED: dict = {}
 #: how many times this process derived a scene's equations (:func:`check`); :func:`run` reports in
 #: ``stats["equations_derived"]`` whether it did
@@ -272,6 +273,8 @@ def _run_backend(backend, scene: Scene, outputs, prune: bool, options) -> Result
     if slot is not None:
         entry = _restore_backend_entry(backend, *slot)
     if entry is not None:
+        if key not in _RESTORED and len(_RESTORED) >= MAX_PRUNED:
+            del _RESTORED[next(iter(_RESTORED))]    # the oldest: a sweep of overrides stays bounded
         _RESTORED[key] = entry
         model, warning_lines, states_pruned = entry
         _warn(warning_lines)

@@ -67,11 +67,16 @@ def root(folders, monkeypatch):
     return folder
 
 
+def forget():
+    """Empty the pipeline's in-memory caches (analyses, equations, restored models), as in a new process."""
+    for memo in (pipeline._CHECKED, pipeline._PRUNED, pipeline._RESTORED):
+        memo.clear()
+
+
 def run(netlist):
-    """A run as in a new process (no equations, models or restored entries in memory); asserts the
+    """A run as in a new process (no analyses, equations or restored models in memory); asserts the
     closed form."""
-    pipeline._PRUNED.clear()
-    pipeline._RESTORED.clear()
+    forget()
     res = pipeline.run(load(netlist), progress=False)
     assert res.stats["backend"] == "numba"
     assert np.max(np.abs(res["body.v"] - exact(res.t))) <= TOL
@@ -125,13 +130,12 @@ def test_a_new_process_runs_the_cached_model_without_deriving(tmp_path):
 
 
 def test_the_cli_restores_without_deriving(root, folders, monkeypatch):
-    """``multipole simulate`` asks no stage before the run: a restored model derives nothing (the
-    check's derivation is counted by ``pipeline.check``)."""
+    """``multipole simulate`` asks no stage before the run: a restored model derives nothing (every
+    derivation starts with ``pipeline.check``, which counts it)."""
     from multipole.cli import main
     netlist, _ = folders
     genuine(root, netlist)
-    pipeline._PRUNED.clear()
-    pipeline._RESTORED.clear()
+    forget()
     before = pipeline._DERIVATIONS[0]
     assert main(["simulate", str(netlist), "--quiet"]) == 0
     assert pipeline._DERIVATIONS[0] == before

@@ -45,7 +45,7 @@ from multipole import ModelError
 __all__ = ["Transfer", "Trace", "DBSD", "DBBD", "BandCurve", "band_curve", "evolute", "Finding",
            "Assessment", "assess", "Synthesis", "synthesise_contour", "write_contour_table",
            "read_contour_table", "Balance", "spring_band_balance", "SpringBandAnalysis",
-           "spring_band_analysis", "CabinetDoor", "Band", "SynthesisWarning"]
+           "spring_band_analysis", "CabinetDoor", "Band", "SynthesisWarning", "close_contour"]
 
 
 
@@ -146,12 +146,18 @@ class DBSD:
     """Structure DB~SD (Ebert 4.3.3): a band from the cam (pivot ``p1``) to a spring or take-off
     nozzle pivoted in the frame at ``p2`` [m].  The band line passes through P2 at the distance
     |h| from P1.  ``s0`` [m]: distance from P2 to the traced band point at the first angle (the
-    spring length there; any value gives the same contour).  ``K``: +1 or -1 (see the module)."""
+    spring length there; any value gives the same contour).  ``K``: +1 or -1 (see the module).
+
+    ``p2 = None`` and ``gamma`` [rad]: the band keeps the direction gamma (pointing from the spring
+    toward the cam), as when the spring is a slider on a guide parallel to the band or P2 is far
+    away (the limit l1 -> infinity); ``s0`` is then the distance of the traced point from the
+    foot 23 along the band."""
 
     p1: Sequence[float]
-    p2: Sequence[float]
+    p2: Sequence[float] | None
     K: int = 1
     s0: float | None = None
+    gamma: float | None = None
 
     def trace(self, phi, x: Transfer) -> Trace:
         """The trace of the band point for the band travel ``x(phi)`` [m] (lever h = x')."""
@@ -159,14 +165,28 @@ class DBSD:
             raise ModelError("bad_assembly_mode", f"DB~SD: K = {self.K!r} must be +1 or -1",
                              "K = +1: the foot 23 lies left of P1 -> P2 for h > 0")
         phi = np.asarray(phi, float)
-        p1, p2, l1 = _frame(self.p1, self.p2, "DB~SD")
         xs, h, dh, ddh = (x(phi, k) for k in range(4))
+        K = self.K
+        if self.p2 is None:                               # the band keeps its direction
+            if self.gamma is None:
+                raise ModelError("bad_value", "DB~SD: give the spring pivot p2 or the band direction gamma",
+                                 "p2 = (x, y) [m], or p2 = None and gamma [rad] for a guided band")
+            p1 = np.asarray(self.p1, float)
+            e = np.broadcast_to([math.cos(self.gamma), math.sin(self.gamma)], (len(phi), 2))
+            n = _perp(e)
+            foot = p1 - (K * h)[:, None] * n
+            s0 = 0.1 + 2 * float(np.ptp(xs)) if self.s0 is None else float(self.s0)
+            s = s0 - (xs - xs[0])                         # distance from 23 back to the point
+            p = foot - s[:, None] * e
+            dp = -(K * dh)[:, None] * n + h[:, None] * e
+            ddp = -(K * ddh)[:, None] * n + dh[:, None] * e
+            return Trace(phi, K * phi, float(K), p, dp, ddp, foot, h, np.full(len(phi), float(self.gamma)), p1)
+        p1, p2, l1 = _frame(self.p1, self.p2, "DB~SD")
         if np.any(np.abs(h) >= l1):
             k = int(np.argmax(np.abs(h)))
             raise ModelError("bad_value", f"DB~SD: lever arm |h| = {abs(h[k]):.6g} m at phi = {phi[k]:.6g} rad "
                              f"reaches the pivot distance {l1:.6g} m (Ebert 4.39 has no solution)",
                              "move the spring pivot P2 further from the cam pivot or limit h")
-        K = self.K
         l2 = np.sqrt(l1 * l1 - h * h)                      # (4.39): distance P2 - 23
         m = (p1 - p2) / l1                                 # unit P2 -> P1
         gamma = math.atan2(m[1], m[0]) - np.arcsin(K * h / l1)   # band direction P2 -> 23 (4.46)
@@ -460,6 +480,53 @@ def read_contour_table(path) -> tuple[np.ndarray, np.ndarray]:
         raise ModelError("bad_table", f"{path}: theta must increase and r be > 0 (at least 4 rows)",
                          "write the table with write_contour_table")
     return data[:, 0], data[:, 1]
+
+
+def close_contour(curve: BandCurve, n_basis: int = 8) -> np.ndarray:
+    """The synthesised arc completed to a closed convex contour (cam frame, shape (n, 2) [m]), so a
+    ``curve_roll``/``curve_drum`` can carry it.  The arc's support function p(nu) (the distance of
+    the band line from the pivot over the direction nu of its outward normal) is continued over the
+    normal directions the band never touches by the quintic that matches p, p' and p'' at both ends
+    (C2) plus the smallest combination of ``n_basis`` bumps s^3 (1 - s)^3 s^j (zero to the second
+    derivative at both ends) that keeps p and p + p'' above half the smaller end value of p (a
+    linear programme): the fill surrounds the pivot (p > 0) and is convex (p + p'' > 0), else
+    ``contour_not_closable``.
+    The band only ever touches the arc, so the fill's shape does not enter the motion."""
+    tr = curve.trace
+    f = np.einsum("nij,nj->ni", _rot(-tr.cam), tr.foot - tr.pivot)
+    nu = np.unwrap(np.arctan2(f[:, 1], f[:, 0]))
+    p, c = np.hypot(*f.T), curve.contour
+    if nu[-1] < nu[0]:
+        nu, p, c = nu[::-1], p[::-1], c[::-1]
+    gap = nu[0] + 2 * math.pi - nu[-1]
+    if np.any(np.diff(nu) <= 0) or not gap > 0:
+        raise ModelError("contour_not_closable", "the band's normal direction does not turn monotonically through "
+                         "less than a full turn over the motion", "assess the contour first")
+    dp = np.gradient(p, nu, edge_order=2)
+    ddp = np.gradient(dp, nu, edge_order=2)
+    hermite = interpolate.BPoly.from_derivatives([nu[-1], nu[0] + 2 * math.pi],
+                                                 [[p[-1], dp[-1], ddp[-1]], [p[0], dp[0], ddp[0]]])
+    m = max(8, int(math.ceil(gap / float(np.median(np.diff(nu))))))
+    t = np.linspace(nu[-1], nu[0] + 2 * math.pi, m + 1)[1:-1]
+    x = np.linspace(0.0, 1.0, m + 1)[1:-1]
+    polys = [64 * np.polynomial.Polynomial([0, 0, 0, 1, -3, 3, -1]) * np.polynomial.Polynomial.basis(j)
+             for j in range(n_basis)]                       # 64 s^3 (1 - s)^3 s^j
+    Bv = np.array([q(x) for q in polys])                     # values over the fill
+    Bpp = np.array([q.deriv(2)(x) / gap ** 2 for q in polys])
+    p0, rho0 = hermite(t), hermite(t) + hermite(t, 2)
+    eps = 0.5 * min(p[0], p[-1])                             # the margin asked of p and p + p''
+    # the smallest bumps sum |l_j| (l = u - v) with p0 + B.l >= eps and rho0 + (B + B'').l >= eps
+    A = np.vstack([np.c_[-Bv.T, Bv.T], np.c_[-(Bv + Bpp).T, (Bv + Bpp).T]])
+    res = optimize.linprog(np.ones(2 * n_basis), A_ub=A, b_ub=np.r_[p0 - eps, rho0 - eps],
+                           bounds=[(0, None)] * (2 * n_basis), method="highs")
+    if not res.success:
+        raise ModelError("contour_not_closable", "no convex closing part around the pivot matches the synthesised "
+                         "arc's ends (C2)", "synthesise over a wider range of the motion or change the pivots")
+    lam = res.x[:n_basis] - res.x[n_basis:]
+    pf = p0 + lam @ Bv
+    dpf = hermite(t, 1) + lam @ np.array([q.deriv(1)(x) / gap for q in polys])
+    cf = np.stack([pf * np.cos(t) - dpf * np.sin(t), pf * np.sin(t) + dpf * np.cos(t)], -1)
+    return np.concatenate([c, cf])
 
 
 @dataclass

@@ -11,15 +11,18 @@ involute/evolute synthesis.
 import dataclasses
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import integrate, optimize
 
-from elements.belt_synthesis import (DBBD, DBSD, Band, CabinetDoor, Transfer, assess, band_curve,
+from elements.belt_synthesis import (DBBD, DBSD, Band, CabinetDoor, Transfer, assess, band_curve, close_contour,
                                      read_contour_table, spring_band_analysis, SynthesisWarning, spring_band_balance,
                                      synthesise_contour, write_contour_table)
-from multipole import MultipoleError
+from elements.belt_contour import read_table
+from multipole import MultipoleError, pipeline
+from multipole.netlist import load
 
 
 def _poly(c0, c1=0.0, c2=0.0, c3=0.0):
@@ -123,6 +126,38 @@ def test_contour_is_the_envelope_of_the_band_lines(which, K):
     dc = np.gradient(c, phi, axis=0, edge_order=2)       # contour tangent by differences (2nd order)
     sin_angle = (dc[:, 0] * d[:, 1] - dc[:, 1] * d[:, 0]) / np.linalg.norm(dc, axis=1)
     assert np.max(np.abs(sin_angle)) < 1e-5               # measured 2e-7 (O(dphi^2) differences)
+
+
+def test_guided_band_is_the_limit_of_a_far_spring_pivot():
+    """DB~SD with a fixed band direction (p2 = None, gamma): a constant lever gives the circle, and a
+    general lever the contour of a spring pivot 1e5 m away (the difference is O(h/l1))."""
+    phi = np.linspace(0.0, 3.0, 301)
+    for K in (1, -1):
+        c = band_curve(DBSD((0.01, 0.02), None, K=K, gamma=0.3).trace(phi, _poly(0.0, 0.04))).contour
+        assert np.max(np.abs(np.hypot(*c.T) - 0.04)) < 1e-12
+        x = Transfer(lambda p: 0.03 * p + 0.01 * np.sin(p), lambda p: 0.03 + 0.01 * np.cos(p),
+                     lambda p: -0.01 * np.sin(p), lambda p: -0.01 * np.cos(p))
+        a = band_curve(DBSD((0, 0), None, K=K, gamma=0.0).trace(phi, x)).contour
+        b = band_curve(DBSD((0, 0), (-1e5, 0), K=K).trace(phi, x)).contour
+        assert np.max(np.abs(a - b)) < 1e-7                    # measured 1.6e-8
+
+
+def test_closed_contour_keeps_the_arc_and_is_convex_around_the_pivot():
+    """The closed contour contains the synthesised arc unchanged, goes once round the pivot with a
+    polar angle that increases, and is convex: the curvature of the polar curve (r^2 + 2 r'^2 -
+    r r'') / (r^2 + r'^2)^1.5 > 0 by differences over the table."""
+    door = CabinetDoor()
+    bal = door.balance(0.05)
+    curve = band_curve(DBSD((0, 0), None, K=1, gamma=0.0).trace(np.linspace(-0.05, door.travel + 0.05, 1201), bal.x))
+    closed = close_contour(curve)
+    assert np.array_equal(closed[:1201], curve.contour[::-1]) or np.array_equal(closed[:1201], curve.contour)
+    theta = np.unwrap(np.arctan2(closed[:, 1], closed[:, 0]))
+    assert np.all(np.diff(theta) > 0) and 2 * math.pi - 0.01 < theta[-1] - theta[0] < 2 * math.pi
+    r = np.hypot(*closed.T)
+    dr = np.gradient(r, theta, edge_order=2)
+    ddr = np.gradient(dr, theta, edge_order=2)
+    kappa = (r ** 2 + 2 * dr ** 2 - r * ddr) / (r ** 2 + dr ** 2) ** 1.5
+    assert np.min(kappa[2:-2]) > 0
 
 
 # -- errata of the synthesis structures (Ebert 4.3, reference section 9) ----------------------------
@@ -292,6 +327,35 @@ def test_cabinet_door_round_trip(tmp_path):
     assert np.max(np.abs(an.h - bal.x(phi, 1))) < 1e-8 * np.max(an.h)
     # Ebert 7.2.1's constraint on the lever arm: h < 80 mm
     assert np.max(an.h) < 0.08
+
+
+BELTS = Path(__file__).resolve().parents[1] / "diagrams" / "belts"
+
+
+def test_cabinet_door_scene_balances_the_door(tmp_path):
+    """diagrams/belts/cabinet_door.yaml: the guided version's closed cam on a curve_drum, turned over
+    the door's travel against the spring band.  The spring's torque on the cam, F1*h1, equals the
+    door's holding torque m g L cos(psi) at every output.  The bound is what the drum's smooth
+    contour form allows: its series errors (lever e_p, arc length e_S, from belt_contour) give
+    F e_p + c e_S h; the band's stretch F l/EA adds c F l/EA h (1e-6 m).  Measured 2e-5 N m.
+    The scene's table is the one the library makes (guided synthesis, closed)."""
+    door = CabinetDoor()
+    bal = door.balance(0.05)
+    curve = band_curve(DBSD(door.p1, None, K=1, gamma=0.0).trace(np.linspace(-0.05, door.travel + 0.05, 1201),
+                                                                bal.x))
+    theta, r = read_contour_table(BELTS / "cabinet_door_cam.csv")
+    theta2, r2 = write_contour_table(tmp_path / "cam.csv", close_contour(curve))
+    assert np.allclose(theta2, theta, rtol=0, atol=1e-9) and np.allclose(r2, r, rtol=1e-9, atol=0)
+    res = pipeline.run(load(BELTS / "cabinet_door.yaml"), progress=False)
+    phi = res.outputs["cam.phi"]
+    assert phi[-1] == pytest.approx(0.5 * 4.18, rel=1e-9)      # the door closed (travel 2.094 rad)
+    F, h = res.outputs["cam.F1"], res.outputs["cam.h1"]
+    gravity = 2.0 * 9.81 * 0.15 * np.cos(math.radians(50.0) - phi)
+    contour = read_table(BELTS / "cabinet_door_cam.csv")
+    contour.series(1e-6)
+    e_p, e_s = contour.series_error
+    bound = np.max(F) * e_p + 938.0 * (e_s + np.max(F) * 0.2 / 1e7) * np.max(h)
+    assert np.max(np.abs(F * h - gravity)) < bound
 
 
 # -- tables and input errors -------------------------------------------------------------------------

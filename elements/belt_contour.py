@@ -75,7 +75,9 @@ class Contour:
 
     def __post_init__(self):
         th, r = np.asarray(self.theta, dtype=float), np.asarray(self.r, dtype=float)
-        where = lambda k: f"{self.source}" + (f" line {self.lines[k]}" if self.lines else f" point {k + 1}")
+        def where(k):
+            at = self.lines[k] if self.lines else None
+            return self.source + (f" line {at}" if isinstance(at, int) else f" {at}" if at else f" point {k + 1}")
         if th.ndim != 1 or th.shape != r.shape or len(th) < 3:
             raise _err("bad_contour", f"{self.source}: a contour needs at least 3 points (theta, r), got {len(th)}",
                        "give the radius at three or more angles over one turn")
@@ -130,7 +132,8 @@ class Contour:
         """The contour through ``fun(theta)`` [m] at ``n`` equally spaced angles [rad] (a Python
         callable taking a numpy array; never a string)."""
         th = np.linspace(0.0, TWO_PI, n, endpoint=False)
-        return cls(th, np.asarray(fun(th), dtype=float) * np.ones_like(th), source or getattr(fun, "__name__", "function"))
+        r = np.asarray(fun(th), dtype=float) * np.ones_like(th)
+        return cls(th, r, source or getattr(fun, "__name__", "function"))
 
     @classmethod
     def from_support(cls, p, dp, n: int = 720, source: str = "support function") -> "Contour":
@@ -220,7 +223,7 @@ class Contour:
         tg, rg = polar_from_support(p, dp, nb + sg * gap)
         tg = th[-1] + np.mod(tg - th[-1], TWO_PI)                    # after the arc's last angle
         return cls(np.concatenate([th, tg]), np.concatenate([rr, rg]), source,
-                   None if lines is None else list(lines) + [f"closing part {k + 1}" for k in range(len(tg))])
+                   None if lines is None else list(lines) + [f"closing point {k + 1}" for k in range(len(tg))])
 
     # -- evaluation ------------------------------------------------------------------------------
     def radius(self, theta, nu: int = 0):
@@ -492,7 +495,8 @@ def _curve(kind: str, sides: int, contour, arc, J, phi0, omega0, w, sides_of, to
     phi = sp.Symbol("phi")
 
     def nu(k, angle):
-        return sp.Symbol(f"g{k}") + sp.Float(int(sides_of[k - 1]) * math.pi / 2) - angle   # no symbolic pi: sympy would reason on it
+        # the offset as a float: with the symbol pi, sympy reasons on every term of the series
+        return sp.Symbol(f"g{k}") + sp.Float(int(sides_of[k - 1]) * math.pi / 2) - angle
 
     def contact(k):
         lever = _sym_series(a, b, nu(k, phi), False, drop)
@@ -515,7 +519,8 @@ _CURVE_PARAMS = [Param("contour", "", _CONTOUR_DOC, kind="file"),
                  Param("phi0", "rad", "initial roll angle", 0.0),
                  Param("omega0", "rad/s", "initial angular velocity", 0.0),
                  Param("w", "-", "winding sense: +1: a positive rotation pays band out at e1 (winds in at e2)", 1.0)]
-_SIDE = "+1: the roll lies to the right of span {k} seen from the span's P1 to its P2 (contact normal at gamma + pi/2), -1: left"
+_SIDE = ("+1: the roll lies to the right of span {k} seen from the span's P1 to its P2 (contact normal at "
+         "gamma + pi/2), -1: left")
 _FRICTION = [Param("tol", "m", "largest error of the lever arm and wound length of the elements' smooth contour form",
                    1e-9, positive=True),
              Param("mu", "-", "bearing friction coefficient (torque -mu*r_pin*radial load*sign(omega))", 0.0,

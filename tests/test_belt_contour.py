@@ -162,8 +162,9 @@ def test_circle_contour_reproduces_band_roll_and_drum_exactly(tmp_path):
     for name, values in ref.outputs.items():
         np.testing.assert_allclose(got.outputs[name], values, rtol=1e-12, atol=1e-15, err_msg=name)
     text = (BELTS / "belt_drive.yaml").read_text()
-    curved = text.replace("type: band_roll, r: 0.05,", "type: curve_roll, contour: c05.csv, side1: -1, side2: -1,"
-                          ).replace("type: band_roll, r: 0.1,", "type: curve_roll, contour: c10.csv, side1: -1, side2: -1,")
+    curve = "type: curve_roll, contour: c{}.csv, side1: -1, side2: -1,"
+    curved = text.replace("type: band_roll, r: 0.05,", curve.format("05")).replace("type: band_roll, r: 0.1,",
+                                                                                  curve.format("10"))
     assert curved.count("curve_roll") == 2
     for name, r in (("c05.csv", 0.05), ("c10.csv", 0.1)):
         write_table(tmp_path / name, np.linspace(0, 2 * np.pi, 12, endpoint=False), np.full(12, r))
@@ -428,7 +429,8 @@ def test_transfer_function_round_trip_through_an_engaged_arc(tmp_path):
     order = np.argsort(th)
     write_table(tmp_path / "arc.csv", th[order], r[order], "engaged arc")
     text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: arc.csv, arc: true, J: 0.01, side1: -1}").replace(
-        "value: -w", "value: w").replace("t_end: 1.0", f"t_end: {float(span) / 0.5!r}").replace("gamma: 0.3", "gamma: 0.0")
+        "value: -w", "value: w").replace("t_end: 1.0", f"t_end: {float(span) / 0.5!r}")
+    text = text.replace("gamma: 0.3", "gamma: 0.0")
     res = pipeline.run(loads(text, str(tmp_path / "arc.yaml")), progress=False, outputs=["rope.stretch", "drum.phi"])
     phi = res.outputs["drum.phi"]
     X = h0 * phi - amp / 2 * np.sin(2 * phi)

@@ -366,6 +366,27 @@ class Contour:
         return a, b
 
 
+HALF_PLANES = {"upper": (1, 1), "lower": (1, -1), "left": (0, -1), "right": (0, 1)}
+
+
+def side_from_half_plane(gamma0: float, half_plane: str) -> int:
+    """Ebert's half-plane choice (``enumHE``, Table 4.20 read consistently), made once at t = 0: the
+    side (+1 or -1) whose contact normal ``gamma0 + side*pi/2`` points into the chosen half-plane
+    about the roll's axis ('upper': y > 0, 'lower', 'left': x < 0, 'right').  A span along the
+    half-plane's boundary (horizontal for upper/lower, vertical for left/right) is refused
+    (``half_plane_ambiguous``): both contacts qualify there."""
+    if half_plane not in HALF_PLANES:
+        raise _err("bad_value", f"half-plane {half_plane!r} must be one of {', '.join(HALF_PLANES)}",
+                   "upper, lower, left or right of the roll's axis")
+    axis, sign = HALF_PLANES[half_plane]
+    normal = gamma0 + math.pi / 2
+    component = math.sin(normal) if axis else math.cos(normal)
+    if abs(component) < 1e-9:
+        raise _err("half_plane_ambiguous", f"a span of inclination {gamma0:.6g} rad touches the roll in the "
+                   f"{half_plane} half-plane on both sides", "choose the half-plane across the span")
+    return 1 if component * sign > 0 else -1
+
+
 def support_series(a, b, nu):
     """p(nu) [m] from the series coefficients (numpy)."""
     k = np.arange(len(a))
@@ -514,14 +535,15 @@ def _curve(kind: str, sides: int, contour, arc, J, phi0, omega0, w, sides_of, to
 
 _CURVE_PARAMS = [Param("contour", "", _CONTOUR_DOC, kind="file"),
                  Param("arc", "", "the table is an engaged arc (a synthesis result): completed to a closed convex "
-                       "contour by a C2 closing part", False, "bool"),
+                       "contour by a closing part with C4 joins", False, "bool"),
                  Param("J", "kg*m^2", "moment of inertia about the axis", 1e-3, positive=True),
                  Param("phi0", "rad", "initial roll angle", 0.0),
                  Param("omega0", "rad/s", "initial angular velocity", 0.0),
                  Param("w", "-", "winding sense: +1: a positive rotation pays band out at e1 (winds in at e2)", 1.0)]
 _SIDE = ("+1: the roll lies to the right of span {k} seen from the span's P1 to its P2 (contact normal at "
-         "gamma + pi/2), -1: left")
-_FRICTION = [Param("tol", "m", "largest error of the lever arm and wound length of the elements' smooth contour form",
+         "gamma + pi/2), -1: left; consistent: -w_k at a span's P1 end, +w_k at its P2 end (w_1 = w, w_2 = -w)")
+_FRICTION = [Param("tol", "m", "largest error of the lever arm in the elements' smooth contour form (the wound length: "
+                   "docs/belts.md)",
                    1e-9, positive=True),
              Param("mu", "-", "bearing friction coefficient (torque -mu*r_pin*radial load*sign(omega))", 0.0,
                    nonnegative=True),

@@ -436,3 +436,17 @@ def test_transfer_function_round_trip_through_an_engaged_arc(tmp_path):
     X = h0 * phi - amp / 2 * np.sin(2 * phi)
     assert phi[-1] == pytest.approx(span, rel=1e-9)
     np.testing.assert_allclose(0.01 - res.outputs["rope.stretch"], X, rtol=0, atol=1e-8 * X[-1])
+
+
+def test_half_plane_choice_gives_the_side_of_the_contact_normal():
+    """Ebert's enumHE made once at t = 0: the contact normal gamma0 + side*pi/2 points into the chosen
+    half-plane (a horizontal span from left to right touches a roll below it at its top: 'upper',
+    side +1); on the half-plane's boundary both contacts qualify."""
+    from elements.belt_contour import side_from_half_plane
+    assert side_from_half_plane(0.0, "upper") == 1 and side_from_half_plane(0.0, "lower") == -1
+    assert side_from_half_plane(np.pi, "upper") == -1             # the span runs right to left
+    assert side_from_half_plane(np.pi / 2, "left") == 1 and side_from_half_plane(np.pi / 2, "right") == -1
+    assert side_from_half_plane(0.3, "right") == -1               # normal at 0.3 - pi/2 points right
+    with pytest.raises(ModelError) as exc:
+        side_from_half_plane(0.0, "left")
+    assert exc.value.code == "half_plane_ambiguous"

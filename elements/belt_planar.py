@@ -37,8 +37,8 @@ import math
 
 import sympy as sp
 
-from multipole import (MTF, C, Closure, Diagnostic, I, Network, Param, Quantity, R, Se, Sketch, Tap, element,
-                       junction_a, junction_b, register_check)
+from multipole import (MTF, C, Closure, Diagnostic, I, Monitor, Network, Param, Quantity, R, Se, Sketch, Tap,
+                       element, junction_a, junction_b, register_check)
 from multipole.errors import ModelError
 
 from .belt import _BAND, _roll
@@ -163,51 +163,82 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
                    closures=[closure], sketch=[Sketch([k1, k2], ["", ""], style="line")])
 
 
+_BEARING = {"a": f"bearing ({_PLANAR}): the axis, e.g. a lever's output; frame-fixed at (x1, y1) if not "
+                 "connected; its phi component takes the pin friction torque (none when mu = 0)",
+            "c": f"centre seen by the spans ({_PLANAR}): join it to the spans' p1/p2 ports; it moves with a, "
+                 "and the span forces on it act on a",
+            "drive": "1-D rotational port on the roll (absolute angular velocity [rad/s], torque on the roll [N*m])"}
+
+
+def _roll_params(extra: list) -> list:
+    return [Param("r", "m", "radius (to the band's neutral layer)", 0.05, positive=True),
+            Param("J", "kg*m^2", "moment of inertia about the axis", 1e-3, positive=True),
+            Param("phi0", "rad", "initial angle (absolute)", 0.0),
+            Param("omega0", "rad/s", "initial angular velocity (absolute)", 0.0),
+            Param("w", "-", "winding sense: +1: a counter-clockwise rotation pays band out at e1 (winds in at e2)",
+                  1.0),
+            Param("m", "kg", "mass on the axis (0: carried by the bearing's body only)", 0.0, nonnegative=True),
+            Param("gx", "m/s^2", "gravity, x component", 0.0), Param("gy", "m/s^2", "gravity, y component", -9.81),
+            Param("mu", "-", "bearing friction coefficient: torque mu*r_pin*|span forces on the axis| against "
+                  "the rotation relative to the housing", 0.0, nonnegative=True),
+            Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True)] + extra + [
+            Param("x1", "m", "frame position x of the axis when a is not connected", 0.0),
+            Param("y1", "m", "frame position y of the axis when a is not connected", 0.0)]
+
+
+_ROLL_QUANTITIES = {
+    "phi": "rad: roll angle", "omega": "rad/s: angular velocity", "F1": "N: band tension at e1",
+    "lr1": "m: band wound off into the span at e1, w r [(phi - phi0) - (gamma1 - gamma1(0))]",
+    "Fx": "N: x force of the spans on the axis", "Fy": "N: y force of the spans on the axis",
+    "x": "m: x of the axis", "y": "m: y of the axis",
+    "friction": "N*m: bearing friction torque (taken from the roll, positive when it turns faster than its housing)"}
+
+
 @element("planar_roll", "circular band roll on a planar bearing (Ebert 4.4.4, corrected): the roll of band_roll "
          "(no-slip winding at radius r, inertia J) whose axis is the planar port a; the spans pull its centre "
          "through the port c",
-         {"a": f"bearing ({_PLANAR}): the axis, e.g. a lever's output; frame-fixed at (x1, y1) if not connected; "
-               "its phi component takes the pin friction torque (none when mu = 0)",
-          "c": f"centre of the roll seen by the spans ({_PLANAR}): join it to the spans' p1/p2 ports; it moves "
-               "with a, and the span forces on it act on a",
-          "e1": f"band port 1 ({_BAND}): a span with wrap sense s = w there",
-          "e2": f"band port 2 ({_BAND}): a span with wrap sense s = -w there",
-          "drive": "1-D rotational port on the roll (absolute angular velocity [rad/s], torque on the roll [N*m])"},
-         [Param("r", "m", "roll radius (to the band's neutral layer)", 0.05, positive=True),
-          Param("J", "kg*m^2", "moment of inertia about the axis", 1e-3, positive=True),
-          Param("phi0", "rad", "initial roll angle (absolute)", 0.0),
-          Param("omega0", "rad/s", "initial angular velocity (absolute)", 0.0),
-          Param("w", "-", "winding sense: +1: a counter-clockwise rotation pays band out at e1 (winds in at e2)",
-                1.0),
-          Param("m", "kg", "mass of the roll on its axis (0: carried by the bearing's body only)", 0.0,
-                nonnegative=True),
-          Param("gx", "m/s^2", "gravity, x component", 0.0), Param("gy", "m/s^2", "gravity, y component", -9.81),
-          Param("mu", "-", "bearing friction coefficient: torque mu*r_pin*|span forces on the axis| against the "
-                "rotation relative to the housing", 0.0, nonnegative=True),
-          Param("r_pin", "m", "bearing pin radius", 0.004, nonnegative=True),
-          Param("mu_c", "-", "contact friction for the capstan monitor (None: no monitor): reports a run "
-                "where one tension exceeds e^(mu_c*wrap) times the other", None),
-          Param("x1", "m", "frame position x of the axis when a is not connected", 0.0),
-          Param("y1", "m", "frame position y of the axis when a is not connected", 0.0)],
-         {"phi": "rad: roll angle", "omega": "rad/s: angular velocity", "F1": "N: band tension at e1",
-          "F2": "N: band tension at e2", "lr1": "m: band wound off into the span at e1, "
-          "w r [(phi - phi0) - (gamma1 - gamma1(0))]", "lr2": "m: band wound off at e2, "
-          "-w r [(phi - phi0) - (gamma2 - gamma2(0))]", "Fx": "N: x force of the spans on the axis",
-          "Fy": "N: y force of the spans on the axis", "x": "m: x of the axis", "y": "m: y of the axis",
-          "friction": "N*m: bearing friction torque (taken from the roll, positive when it turns faster than "
-                      "its housing)",
-          "wrap": "rad: wrap angle, from the contact where the band runs on to the one where it leaves "
-                  "(in (0, 2 pi) at t = 0, continuous; the monitor band_lifts_off reports it falling to 0)"})
+         _BEARING | {"e1": f"band port 1 ({_BAND}): a span with wrap sense s = w there",
+                     "e2": f"band port 2 ({_BAND}): a span with wrap sense s = -w there"},
+         _roll_params([Param("mu_c", "-", "contact friction for the capstan monitor (None: no monitor): reports a "
+                             "run where one tension exceeds e^(mu_c*wrap) times the other", None)]),
+         _ROLL_QUANTITIES | {
+             "F2": "N: band tension at e2",
+             "lr2": "m: band wound off at e2, -w r [(phi - phi0) - (gamma2 - gamma2(0))]",
+             "wrap": "rad: wrap angle, from the contact where the band runs on to the one where it leaves "
+                     "(in (0, 2 pi) at t = 0, continuous; the monitor band_lifts_off reports it falling to 0)"})
 def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x1, y1):
     """Circular roll on a planar bearing [r in m, J in kg*m^2, angles in rad, m in kg]."""
+    params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": w, "m": m, "gx": gx, "gy": gy, "mu": mu,
+              "r_pin": r_pin, "x1": x1, "y1": y1} | ({} if mu_c is None else {"mu_c": mu_c})
+    return _planar_roll("planar_roll", 2, params, mu_c=mu_c)
+
+
+@element("planar_drum", "band drum on a planar bearing (Ebert 4.4.4 derived): planar_roll with one band end "
+         "fixed on it; winds band in or pays it out at e1",
+         _BEARING | {"e1": f"band port ({_BAND}): a span with wrap sense s = w there"},
+         _roll_params([Param("stored", "m", "band stored on the drum at t = 0 (None: no monitor): paying out "
+                             "more stops the run (drum_paid_out)", None)]),
+         _ROLL_QUANTITIES)
+def planar_drum(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, stored, x1, y1):
+    """Band drum on a planar bearing [r in m, J in kg*m^2, angles in rad, m in kg]."""
+    params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": w, "m": m, "gx": gx, "gy": gy, "mu": mu,
+              "r_pin": r_pin, "x1": x1, "y1": y1} | ({} if stored is None else {"stored": stored})
+    return _planar_roll("planar_drum", 1, params, stored=stored)
+
+
+def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None) -> Network:
+    """A roll (``sides`` = 2) or drum (1) of :func:`elements.belt._roll` on the planar bearing ``a``,
+    its centre ``c`` handed to the spans; ``params`` the element's parameters (by name)."""
+    w, m, mu = params["w"], params["m"], params["mu"]
     # the 1-D roll with its parameters bound to this element's (a scene's expression like
-    # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense)
-    # its wrap is the state beta below (the monitors band_lifts_off and, with mu_c, capstan_limit)
-    roll = _roll("planar_roll", 2, _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0, _S("beta"),
-                 mu_c=None if mu_c is None else _S("mu_c"))
+    # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense);
+    # a roll's wrap is the state beta below (monitors band_lifts_off and, with mu_c, capstan_limit)
+    roll = _roll(kind, sides, _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0,
+                 _S("beta") if sides == 2 else None, mu_c=None if mu_c is None else _S("mu_c"))
     children = {"R": roll}
-    connections, ports = [], {"drive": "R.drive", "e1.l": "R.e1.l", "e2.l": "R.e2.l", "a.phi": "H.a",
-                              "c.phi": "H.c"}
+    ends = range(1, sides + 1)
+    connections, ports = [], {"drive": "R.drive", "a.phi": "H.a", "c.phi": "H.c"} | \
+        {f"e{k}.l": f"R.e{k}.l" for k in ends}
     children["H"] = junction_b(["a", "c"], "rotational")     # the housing angle, handed from a to c
     signals = {"rphi": "R.tap.q"}
     if not _zero(mu):
@@ -233,52 +264,68 @@ def planar_roll(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, mu_c, x1, y1):
     # kappa2 = gamma2 + w pi/2; the band runs on at e2 and off at e1, so the wrap is w (kappa1 - kappa2)
     # = w (gamma1 - gamma2) - pi, taken in (0, 2 pi) at t = 0 and integrated from the rates after it
     ws, g1, g2 = (1 if w in (1, 1.0) else -1), _S("g1"), _S("g2")
-    for k in (1, 2):
-        children[f"G{k}"] = junction_b(["o", "i", "tap", "w"], "rotational")
+    for k in ends:
+        children[f"G{k}"] = junction_b(["o", "i", "tap"] + (["w"] if sides == 2 else []), "rotational")
         children[f"tap{k}"] = Tap("rotational", q0=0)
-        connections += [[f"G{k}.i", f"R.e{k}.gamma"], [f"G{k}.tap", f"tap{k}.p"], [f"G{k}.w", f"B.g{k}"]]
+        connections += [[f"G{k}.i", f"R.e{k}.gamma"], [f"G{k}.tap", f"tap{k}.p"]]
         ports[f"e{k}.gamma"] = f"G{k}.o"
-    wrap0 = ws * (g1 - g2) - sp.pi
-    children["B"] = junction_a(["g1", "g2", "t"], "rotational", [ws, -ws, -1])
-    children["wrap"] = Tap("rotational", q0=wrap0 - 2 * sp.pi * sp.floor(wrap0 / (2 * sp.pi)))
-    connections.append(["B.t", "wrap.p"])
-    signals["beta"] = "wrap.q"
     xa, ya, pa = _S("xa"), _S("ya"), _S("pa")
-    params = {"r": r, "J": J, "phi0": phi0, "omega0": omega0, "w": int(w) if w in (1, -1) else w, "m": m,
-              "gx": gx, "gy": gy, "mu": mu, "r_pin": r_pin, "x1": x1, "y1": y1} | ({} if mu_c is None else {"mu_c": mu_c})
     q = {"phi": Quantity(lambda V: V.x("R.tap.q")), "omega": Quantity(lambda V: V.f("R.drive")),
-         "F1": Quantity(lambda V: V.e("R.T1.a")), "F2": Quantity(lambda V: V.e("R.T2.a")),
+         "F1": Quantity(lambda V: V.e("R.T1.a")),
          "lr1": Quantity(lambda V: V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap1.q"))),
-         "lr2": Quantity(lambda V: -V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap2.q"))),
          "Fx": Quantity(lambda V: V.e("xJ.c")), "Fy": Quantity(lambda V: V.e("yJ.c")),
          "x": Quantity(lambda V: V.param("xa")), "y": Quantity(lambda V: V.param("ya")),
-         "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0)),
-         "wrap": Quantity(lambda V: V.x("wrap.q"))}
+         "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0))}
+    reads = {"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1")), "pa": ("a.phi", 0)}
+    if sides == 2:
+        wrap0 = ws * (g1 - g2) - sp.pi
+        children["B"] = junction_a(["g1", "g2", "t"], "rotational", [ws, -ws, -1])
+        children["wrap"] = Tap("rotational", q0=wrap0 - 2 * sp.pi * sp.floor(wrap0 / (2 * sp.pi)))
+        connections += [["G1.w", "B.g1"], ["G2.w", "B.g2"], ["B.t", "wrap.p"]]
+        signals["beta"] = "wrap.q"
+        reads |= {"g1": ("e1.gamma", 0), "g2": ("e2.gamma", 0)}
+        q |= {"F2": Quantity(lambda V: V.e("R.T2.a")),
+              "lr2": Quantity(lambda V: -V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0")
+                                                                         - V.x("tap2.q"))),
+              "wrap": Quantity(lambda V: V.x("wrap.q"))}
+    params = dict(params) | {"w": int(w) if w in (1, -1) else w}
+    monitors = []
+    if stored is not None:
+        # the band paid out past the anchor: the wound-off length with the turning of the span
+        signals["dg1"] = "tap1.q"
+        paid_out = _S("w") * _S("r") * (_S("rphi") - _S("phi0") - _S("dg1"))
+        monitors.append(Monitor(_S("stored") - paid_out, "drum_paid_out",
+                                "paid out all the band stored on it: the band end would tear off its anchor",
+                                stop=True, fix="store more band on the drum (parameter stored) or pay out less"))
     ph = _S("rphi")
     circle = [(xa + _S("r") * sp.cos(ph + 2 * math.pi * k / _CIRCLE), ya + _S("r") * sp.sin(ph + 2 * math.pi * k / _CIRCLE))
               for k in range(_CIRCLE + 1)]
-    return Network("planar_roll", children, connections, ports, params, q, signals=signals,
-                   bundles={"a": "planar", "c": "planar", "e1": "band", "e2": "band"},
-                   positions={"c.x": xa, "c.y": ya, "c.phi": pa},
-                   reads={"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1")), "pa": ("a.phi", 0),
-                          "g1": ("e1.gamma", 0), "g2": ("e2.gamma", 0)},
-                   fixed=("a.x", "a.y", "a.phi", "e1.gamma", "e2.gamma"),
+    return Network(kind, children, connections, ports, params, q, signals=signals,
+                   bundles={"a": "planar", "c": "planar"} | {f"e{k}": "band" for k in ends},
+                   positions={"c.x": xa, "c.y": ya, "c.phi": pa}, reads=reads, monitors=monitors,
+                   fixed=("a.x", "a.y", "a.phi") + tuple(f"e{k}.gamma" for k in ends),
                    sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="line"),
                            Sketch([(xa, ya), circle[0]], ["", ""], style="line"),
                            Sketch([(xa, ya)], [""], style="point")])
 
 
+_PLANAR_ROLLS = ("planar_roll", "planar_drum")
+
+
 @register_check("planar_band_roll", "error",
-                "a planar_band joined to a planar_roll must be given that roll's radius and wrap sense (r1 = r, "
-                "s1 = w at the roll's e1, -w at its e2) and its p port must be joined to the roll's centre c")
+                "a planar_band joined to a planar_roll or planar_drum must be given its radius and wrap sense "
+                "(r1 = r, s1 = w at its e1, -w at its e2) and its p port must be joined to the roll's centre c")
 def planar_band_roll(ctx):
     kinds, ports = ctx.flat.elements, ctx.flat.external_ports
     node_of = {p: k for k, node in enumerate(ctx.flat.nodes) for p in node.ports}
     for a, b, data in band_graph(ctx).edges(data=True):
         ends = dict(p.rsplit(".", 1) for p in data["ports"])
-        if {kinds.get(a), kinds.get(b)} != {"planar_band", "planar_roll"}:
+        if kinds.get(a) == "planar_band" and kinds.get(b) in _PLANAR_ROLLS:
+            span, roll = a, b
+        elif kinds.get(b) == "planar_band" and kinds.get(a) in _PLANAR_ROLLS:
+            span, roll = b, a
+        else:
             continue
-        span, roll = (a, b) if kinds.get(a) == "planar_band" else (b, a)
         k, j = ends[span][-1], ends[roll][-1]            # the span's end 1|2, the roll's port 1|2
         r, w, rk, sk = _value(ctx, roll, "r"), _value(ctx, roll, "w"), _value(ctx, span, f"r{k}"), \
             _value(ctx, span, f"s{k}")

@@ -441,3 +441,50 @@ def test_compressor_belt_length_is_invariant_while_the_tensioner_swings():
     # measured 1.0e-11 m (rtol 1e-6 of the run: the free lengths come from the same integrated states)
     np.testing.assert_allclose(length, length[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(o["M.wrap"] + o["P.wrap"] - o["T.wrap"], 2 * math.pi, rtol=0, atol=1e-9)
+
+
+# -- a planar drum ------------------------------------------------------------------------------
+
+WINCH = """
+name: winch
+# a drum at the origin winds in a rope tied to the tip of a hanging lever (DAN pivoted at (0.5, 0.3))
+parameters: {wd: -1.0, stored: 10.0}
+elements:
+  motor: {type: speed_source, value: wd}
+  drum: {type: planar_drum, r: 0.1, J: 0.01, stored: stored}
+  rope: {type: planar_band, EA: 1.0e4, cd: 50.0, F0: 5.0, r1: 0.1, s1: 1}
+  lever: {type: DAN, l: 0.4, phi0: -1.5707963267948966, m: 1.0, J: 0.02, x1: 0.5, y1: 0.3}
+  damp: {type: damper, d: 0.5}
+connections:
+  - [motor.p, drum.drive]
+  - [drum.c, rope.p1]
+  - [drum.e1, rope.e1]
+  - [rope.p2, lever.b]
+  - [lever.drive, damp.a]
+  - [damp.b, lever.support]
+outputs: [rope.F, rope.free, rope.gamma, drum.lr1, drum.F1, lever.phi]
+simulate: {t_end: 1.0, rtol: 1.0e-9}
+"""
+
+
+def test_planar_drum_winds_in_the_rope_of_a_swinging_lever():
+    """The drum winds in at 1 rad/s and swings the lever toward it: the rope's free length changes
+    by the drum's wound-off length w r [(phi - phi0) - (gamma - gamma0)] (1e-9 m), which is the
+    drum's r*omega*t corrected by the rope's turning; the drum feels the rope's tension."""
+    res = run(WINCH)
+    o = res.outputs
+    assert np.ptp(o["lever.phi"]) > 0.1 and np.ptp(o["rope.gamma"]) > 0.01
+    np.testing.assert_allclose(o["rope.free"] - o["rope.free"][0], o["drum.lr1"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(o["drum.lr1"], 0.1 * (-1.0 * res.t - (o["rope.gamma"] - o["rope.gamma"][0])),
+                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(o["drum.F1"], o["rope.F"], rtol=1e-12)
+
+
+def test_planar_drum_paying_out_its_store_stops_the_run():
+    """Paying out at 0.1 m/s with 0.02 m stored: the run stops with drum_paid_out at 0.2 s (the rope
+    barely turns: the wound-off length is r*omega*t to 1e-3)."""
+    with pytest.raises(MultipoleError) as exc:
+        pipeline.run(scene(WINCH, {"wd": 1.0, "stored": 0.02}), progress=False)
+    assert exc.value.code == "drum_paid_out" and "t = 0.2 s" in exc.value.message
+    res = pipeline.run(scene(WINCH, {"wd": 1.0, "stored": 0.02}), progress=False, t_end=0.19)
+    assert res.outputs["drum.lr1"][-1] < 0.02

@@ -13,7 +13,7 @@ inclination ``gamma`` is a parameter) and its end points move along one global l
 ``p1``/``p2``, the component of the end-point velocity along that line, held when unconnected);
 the wrap is fixed; a roll's axis is the node its spans' end ports are joined to.  This covers
 pulley blocks with parallel ropes and belt drives with fixed axes; planar spans and rolls on
-linkages are not yet built.
+linkages are ``elements/belt_planar.py``.
 
 The wound length is Ebert's corrected (4.95): l_r = w*r*(phi - phi0) at e1 and -w*r*(phi - phi0)
 at e2 (w = +1: a positive roll rotation pays band out at e1 and winds it in at e2); the span's

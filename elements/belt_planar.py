@@ -3,9 +3,11 @@
 ``planar_band`` is the elastic span of :func:`elements.belt.band` whose end points are the common
 tangent points of two circles: it reads the positions of the circles' centres from its planar ports
 ``p1``/``p2`` (a roll's centre port ``c``, a linkage output, or the frame when unconnected), knows
-their radii ``r1``/``r2`` and wrap senses ``s1``/``s2`` and provides the inclination ``gamma`` of the
-span to the rolls at its band ports.  ``planar_roll`` is the circular roll of
-:func:`elements.belt.band_roll` whose bearing is a planar port ``a`` (a linkage output, or the frame).
+their radii ``r1``/``r2`` and wrap senses ``s1``/``s2`` and hands each roll the direction in which
+the span leaves it (``gamma`` at ``e1``, ``gamma + pi`` at ``e2``).  ``planar_roll`` is the circular
+roll of :func:`elements.belt.band_roll` whose bearing is a planar port ``a`` (a linkage output, or the
+frame), ``planar_drum`` the drum derived from it; the check ``planar_band_roll`` refuses a span whose
+radius, wrap sense or centre disagrees with its roll.
 
 Geometry (signed radii, one tangent per pair of wrap senses).  With the unit vector t = (cos g,
 sin g) of the span (from end 1 to end 2) and its left normal n = (-sin g, cos g), the tangent
@@ -29,7 +31,9 @@ Delta g', the stretch delta = l_B - l_x (l_x = l0 + l_r1 + l_r2) has the rate
 
 so the band bond carries the roll's surface speed s r phi' (as for the 1-D roll), the span pulls
 the centres with -F t and +F t, the rolls feel the torque s r F, and ``gamma`` carries no torque.
-Units: SI (m, rad, N, N*s, kg, kg*m^2).
+A roll's wrap w (gamma1 - gamma2) - pi (in (0, 2 pi) at t = 0, then integrated) feeds the monitors
+of :func:`elements.belt._roll` (``band_lifts_off``, ``capstan_limit``); a drum's ``drum_paid_out``
+watches the wound-off length with the span's turning.  Units: SI (m, rad, N, N*s, kg, kg*m^2).
 """
 from __future__ import annotations
 

@@ -15,7 +15,9 @@ practical recommendations as :class:`Finding` objects with codes); :func:`synthe
 runs structure -> band curve -> assessment and writes the contour as a CSV table ``theta [rad],
 r [m]`` (polar, cam frame).  :func:`spring_band_balance` is chapter 6 with the closed-form
 quadrature of the spring travel, :func:`spring_band_analysis` the independent check: the torque a
-spring band exerts through a contour table, found by the tangent from the spring pivot.
+spring band exerts through a contour table, found by the tangent from the spring pivot;
+:func:`close_contour` completes a synthesised arc to the closed convex contour a ``curve_drum``
+carries; :class:`CabinetDoor` is the worked example (Ebert 7.2.1).
 
 Conventions (ours, where Ebert's printed ones contradict each other; see docs/belts.md):
 

@@ -431,6 +431,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
                 g.add_edge(j, i)
     cond = nx.condensation(g)
     params = analysis.flat.param_values()
+    state_symbols = {s.symbol for s in analysis.states}
     blocks, closed = _closure_blocks(analysis)
     diagnostics: list[Diagnostic] = []
     for c in nx.topological_sort(cond):
@@ -475,7 +476,9 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             raise err
         derivative = any(eqs[i].role == "differentiated" for i in members)
         first = len(blocks)
-        if len(zs) <= SYMBOLIC_LIMIT:
+        if len(zs) <= CRAMER_LIMIT and A.free_symbols & state_symbols:
+            blocks.append(Block("linear", zs, _cramer(A, b), res, owners, notes, A, b))
+        elif len(zs) <= SYMBOLIC_LIMIT:
             sol = A.LUsolve(b)
             # cancel removes common factors that vanish at a mechanism's dead centres (0/0 in the
             # uncancelled quotient of the slider-crank); it costs the 8-link mechanism's check 12 s
@@ -502,6 +505,25 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
         if report is not None:
             diagnostics.append(report)
     return eq
+
+
+#: small linear loops whose matrix depends on a state (a mechanism's velocity relations) are solved by
+#: Cramer's rule up to this size (see :func:`_cramer`)
+CRAMER_LIMIT = 4
+
+
+def _cramer(A, b) -> list:
+    """``A⁻¹ b`` as ``det(A_i) / det(A)`` (``A_i``: column i replaced by ``b``; division-free
+    determinants).  The denominator is the determinant itself, zero only where the loop is singular:
+    an LU solution divides by pivots that vanish at regular poses too (0/0 at the slider-crank's dead
+    centres) and needs ``cancel``, which cost the 8-link mechanism's check a third of its time."""
+    det = A.det(method="berkowitz")
+    out = []
+    for i in range(A.shape[0]):
+        Ai = A.copy()
+        Ai[:, i] = b
+        out.append(Ai.det(method="berkowitz") / det)
+    return out
 
 
 def _split_block(A, b, zs, owners, notes, params) -> list:

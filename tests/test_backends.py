@@ -329,7 +329,8 @@ def fresh_equations(monkeypatch, tmp_path):
     """Equations derived anew in this test: pipeline.pruned remembers them per scene in the process,
     and the numba backend its compiled model on them, so a scene an earlier test ran on numba would
     never reach the patched compiler; nor would a model restored from the disk cache (an empty one
-    here) or from memory."""
+    here) or from memory, nor equations assembled by an earlier check of the scene."""
+    monkeypatch.setattr(pipeline, "_CHECKED", {})
     monkeypatch.setattr(pipeline, "_PRUNED", {})
     monkeypatch.setattr(pipeline, "_RESTORED", {})
     monkeypatch.setenv("MULTIPOLE_CACHE", str(tmp_path / "cache"))

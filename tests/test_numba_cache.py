@@ -24,6 +24,7 @@ pytest.importorskip("numba")
 from multipole import pipeline  # noqa: E402
 from multipole.backends import numba_backend  # noqa: E402
 from multipole.netlist import load  # noqa: E402
+from test_monitors import NETLIST as MONITORED, PERIOD, crossing_times, oscillator_type  # noqa: E402,F401
 
 M, D, F = 2.0, 8.0, 10.0
 DRAG = f"""
@@ -248,3 +249,20 @@ def test_describe_and_restore_round_trip(root, folders):
         assert getattr(again, attr) == getattr(first, attr), attr
     assert np.array_equal(again.x0, first.x0)
     assert numba_backend.run.describe(eq, ["body.p"]) is None      # not the outputs it was compiled for
+
+
+def test_a_restored_model_keeps_its_monitors(root, tmp_path, oscillator_type):
+    """The monitors live in the generated module: restored from the entry, the model reports the
+    same crossings, at the closed-form times of tests/test_monitors.py."""
+    path = tmp_path / "watched.yaml"
+    path.write_text(MONITORED.replace("STOP", "false"))
+    runs = []
+    for derived in (True, False):
+        forget()
+        res = pipeline.run(load(path), progress=False, backend="numba")
+        assert res.stats["backend"] == "numba" and res.stats["equations_derived"] is derived
+        runs.append(res.monitors)
+    expected = crossing_times(0.05, 2.2 * PERIOD)
+    assert runs[0] == runs[1] and len(runs[0]) == len(expected) == 3
+    for (t, el, code, _text), t_exact in zip(runs[0], expected):
+        assert (el, code) == ("osc", "passed_x0") and abs(t - t_exact) <= 5e-6 * t_exact

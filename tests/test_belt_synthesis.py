@@ -329,6 +329,49 @@ def test_cabinet_door_round_trip(tmp_path):
     assert np.max(an.h) < 0.08
 
 
+@pytest.mark.parametrize("K", [1, -1])
+def test_db_bd_round_trip_through_the_table(K, tmp_path):
+    """DB~BD: synthesis -> table -> the common tangent of the turned table contour and the roll
+    (found on the table's cubic spline, the side by K: the roll's contact point 34 = P2 - d2 n
+    left of P1 -> P2 for K = +1), whose lever ratio d1/d2 is the ratio psi' (power balance of the
+    band).  Against the prescribed psi' = 1.2 + 0.3 cos(phi): 1e-8 (measured 1e-14)."""
+    from scipy import interpolate
+    r4, p2 = 0.03, np.array([0.2, 0.1])
+    psi = Transfer(lambda p: 1.2 * p + 0.3 * np.sin(p), lambda p: 1.2 + 0.3 * np.cos(p),
+                   lambda p: -0.3 * np.sin(p), lambda p: -0.3 * np.cos(p))
+    synthesise_contour(DBBD((0, 0), p2, r4, K=K), psi, np.linspace(-0.05, 2.05, 1201), tmp_path / "cam.csv")
+    th, r = read_contour_table(tmp_path / "cam.csv")
+    spl = interpolate.CubicSpline(th, r)
+    dspl = spl.derivative()
+
+    def line(t, q):       # contact point, band direction toward the roll, its left normal
+        c = spl(t) * np.array([np.cos(t), np.sin(t)])
+        u = dspl(t) * np.array([np.cos(t), np.sin(t)]) + spl(t) * np.array([-np.sin(t), np.cos(t)])
+        u = u / np.linalg.norm(u) * np.sign(u @ (q - c))
+        return c, u, np.array([-u[1], u[0]])
+
+    d2 = -K * r4
+    grid = np.linspace(th[0], th[-1], 2000)
+    for phi in np.linspace(0.0, 2.0, 21):
+        q = np.array([[math.cos(phi), math.sin(phi)], [-math.sin(phi), math.cos(phi)]]) @ p2   # P2, cam frame
+
+        def f(t):
+            c, u, n = line(t, q)
+            return n @ (q - c) - d2
+
+        v = np.array([f(t) for t in grid])
+        roots = [optimize.brentq(f, grid[k], grid[k + 1], xtol=1e-15) for k in np.flatnonzero(np.diff(np.sign(v)))]
+        ratios = []
+        for t in roots:
+            c, u, n = line(t, q)
+            c34 = q - d2 * n
+            # a root, not the jump where u turns round, with 34 on the K side
+            if abs(f(t)) < 1e-12 and K * (q[0] * c34[1] - q[1] * c34[0]) > 0:
+                ratios.append((n @ -c) / d2)
+        assert len(ratios) == 1
+        assert ratios[0] == pytest.approx(1.2 + 0.3 * math.cos(phi), abs=1e-8)
+
+
 BELTS = Path(__file__).resolve().parents[1] / "diagrams" / "belts"
 
 

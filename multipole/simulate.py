@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
-from .errors import Interrupted, LongRunWarning, MultipoleError, MultipoleWarning, NewtonError, RunError
+from .errors import Interrupted, LongRunWarning, MultipoleError, NewtonError, RunError
 from .files import atomic_output
 from .solvers import SOLVERS
 IMPLICIT = {"Radau", "BDF", "LSODA", "GL4"}

@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from helpers import scene
 from multipole import (C, I, ModelError, Monitor, Network, Quantity, RunError, analyse, assemble, compile_model,
                        flatten, junction_b, pipeline, simulate)
 from multipole.catalogue import _REGISTRY, ElementType, Param, catalogue

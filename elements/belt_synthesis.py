@@ -44,6 +44,8 @@ from scipy import interpolate, optimize
 
 from multipole import ModelError
 
+from .belt_contour import write_table
+
 __all__ = ["Transfer", "Trace", "DBSD", "DBBD", "BandCurve", "band_curve", "evolute", "Finding",
            "Assessment", "assess", "Synthesis", "synthesise_contour", "write_contour_table",
            "read_contour_table", "Balance", "spring_band_balance", "SpringBandAnalysis",
@@ -442,7 +444,8 @@ def assess(curve: BandCurve, transfer: Transfer | None = None, *, torque: Callab
 
 def write_contour_table(path, contour: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Write a contour (cam frame, shape (n, 2) [m]) as the polar CSV table ``theta [rad], r [m]``
-    (header line, then one row per point, theta increasing and unwrapped).  The points are
+    that ``curve_roll`` reads (header line, then one row per point, theta increasing and unwrapped;
+    written by ``belt_contour.write_table``).  The points are
     reordered so that theta increases; the polar angle must be monotonic along the contour (the
     pivot inside the convex contour).  Returns ``(theta, r)``."""
     contour = np.asarray(contour, float)
@@ -456,11 +459,7 @@ def write_contour_table(path, contour: np.ndarray) -> tuple[np.ndarray, np.ndarr
                          "assess the contour first; a producible band curve around its pivot is polar")
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["theta [rad]", "r [m]"])
-        for t, rr in zip(theta, r):
-            w.writerow([repr(float(t)), repr(float(rr))])
+    write_table(tmp, theta, r)          # the curve rolls' table format (elements/belt_contour.py)
     tmp.replace(path)
     return theta, r
 

@@ -407,7 +407,7 @@ def test_contour_table_format_and_bad_tables(tmp_path):
     c = 0.05 * np.stack([np.cos(np.linspace(2.0, 0.5, 50)), np.sin(np.linspace(2.0, 0.5, 50))], -1)
     theta, r = write_contour_table(tmp_path / "t.csv", c)
     lines = (tmp_path / "t.csv").read_text().splitlines()
-    assert lines[0] == "theta [rad],r [m]" and len(lines) == 51
+    assert lines[0] == "theta [rad], r [m]" and len(lines) == 51
     assert theta[0] == pytest.approx(0.5) and np.all(np.diff(theta) > 0) and np.allclose(r, 0.05)
     (tmp_path / "bad.csv").write_text("theta [rad],r [m]\n0.0,0.1\n0.1,x\n")
     with pytest.raises(MultipoleError) as exc:

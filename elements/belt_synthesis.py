@@ -52,7 +52,6 @@ __all__ = ["Transfer", "Trace", "DBSD", "DBBD", "BandCurve", "band_curve", "evol
            "spring_band_analysis", "CabinetDoor", "Band", "SynthesisWarning", "close_contour"]
 
 
-
 class SynthesisWarning(UserWarning):
     """A recommendation of Ebert 5.3 that a synthesised band curve does not meet (a
     :class:`Finding` of severity "warning", issued by :func:`synthesise_contour`)."""

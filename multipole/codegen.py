@@ -10,6 +10,7 @@ become a numeric linear solve or a Newton iteration (warm-started, iterations co
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import math
 import re
@@ -19,7 +20,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .equations import Equations, linear_coefficient
+from .equations import Equations
 from .errors import ModelError, NewtonError
 from .primitives import T
 from .stages import bulk
@@ -1100,9 +1101,21 @@ def _jacobian(residuals, zs) -> sp.Matrix:
     return J
 
 
+@functools.lru_cache(maxsize=8192)       # the same derivatives for jac and jac_in_mode
 def _diff(expr, w):
-    split = linear_coefficient(expr, w)
-    return split[0] if split is not None else sp.diff(expr, w)
+    """d expr / d w, term by term: a term ``c*w`` gives ``c`` without differentiating, any other
+    term that holds ``w`` is differentiated alone (not the whole sum twice and expanded, as through
+    :func:`linear_coefficient`: that was a fifth of the 8-link mechanism's check and build)."""
+    parts = []
+    for term in sp.Add.make_args(expr):
+        if w not in term.free_symbols:
+            continue
+        factors = sp.Mul.make_args(term)
+        if factors.count(w) == 1 and not any(w in f.free_symbols for f in factors if f != w):
+            parts.append(sp.Mul(*[f for f in factors if f != w]))
+        else:
+            parts.append(sp.diff(term, w))
+    return sp.Add(*parts)
 
 
 #: Loop matrices up to this many rows are printed as array literals; larger ones entry by entry.

@@ -501,7 +501,8 @@ _CONTOUR_DOC = ("contour table: CSV 'theta [rad], r [m]' (polar, roll frame, one
                 "to the netlist file (Python: also a Contour, a callable r(theta) or a number: a circle)")
 
 
-def _curve(kind: str, sides: int, contour, arc, J, phi0, omega0, w, sides_of, tol, mu, r_pin, wrap):
+def _curve(kind: str, sides: int, contour, arc, J, phi0, omega0, w, sides_of, tol, mu, r_pin, wrap, mu_c=None,
+           stored=None):
     c = as_contour(contour, bool(arc))
     try:
         tol = float(tol)
@@ -525,7 +526,8 @@ def _curve(kind: str, sides: int, contour, arc, J, phi0, omega0, w, sides_of, to
         return lever, wound
 
     reads = {f"g{k}": (f"e{k}.gamma", 0.0) for k in range(1, sides + 1)}
-    net = _roll(kind, sides, None, J, phi0, omega0, w, mu, r_pin, wrap, contact=contact, reads=reads)
+    net = _roll(kind, sides, None, J, phi0, omega0, w, mu, r_pin, wrap, contact=contact, reads=reads, mu_c=mu_c,
+                stored=stored)
     for k in range(1, sides + 1):
         lever = _sym_series(a, b, nu(k, phi), False, drop)
         net.quantities[f"h{k}"] = Quantity(lambda V, e=lever: e.xreplace({s: V.param(s.name) for s in e.free_symbols}))
@@ -557,20 +559,26 @@ _CURVE_QTY = _ROLL_QTY | {"h1": "m: lever arm of the band force at e1 (support f
           "drive": "1-D rotational port on the roll (angular velocity [rad/s], torque on the roll [N*m])"},
          _CURVE_PARAMS + [Param("side1", "-", _SIDE.format(k=1), 1.0), Param("side2", "-", _SIDE.format(k=2), 1.0)]
          + _FRICTION + [Param("wrap", "rad", "wrap angle for the radial load |F1 e1 + F2 e2| (angle between the "
-                                             "spans' directions: pi - wrap)", math.pi, positive=True)],
+                                             "spans' directions: pi - wrap)", math.pi, positive=True),
+                        Param("mu_c", "-", "band-roll contact friction for the capstan monitor: the run reports "
+                              "capstan_limit when one tension exceeds e^(mu_c*wrap) times the other; None: not "
+                              "monitored", None, nonnegative=True)],
          _CURVE_QTY | {"F2": "N: band tension at e2", "h2": "m: lever arm of the band force at e2"})
-def curve_roll(contour, arc, J, phi0, omega0, w, side1, side2, tol, mu, r_pin, wrap):
+def curve_roll(contour, arc, J, phi0, omega0, w, side1, side2, tol, mu, r_pin, wrap, mu_c):
     """Curve roll [contour in m, J in kg*m^2, angles in rad]."""
-    return _curve("curve_roll", 2, contour, arc, J, phi0, omega0, w, (side1, side2), tol, mu, r_pin, wrap)
+    return _curve("curve_roll", 2, contour, arc, J, phi0, omega0, w, (side1, side2), tol, mu, r_pin, wrap, mu_c=mu_c)
 
 
 @element("curve_drum", "band drum with a convex curve contour (Ebert 4.4.5 derived): one band end fixed on it; "
          "winds band in or pays it out at e1 with the contour's lever arm (a band cam)",
          {"e1": f"band port ({_BAND})", "drive": "1-D rotational port on the drum"},
-         _CURVE_PARAMS + [Param("side1", "-", _SIDE.format(k=1), 1.0)] + _FRICTION, _CURVE_QTY)
-def curve_drum(contour, arc, J, phi0, omega0, w, side1, tol, mu, r_pin):
+         _CURVE_PARAMS + [Param("side1", "-", _SIDE.format(k=1), 1.0)] + _FRICTION
+         + [Param("stored", "m", "band stored on the drum at t = 0 (the length of contour it can pay out at e1); "
+                  "paying out more stops the run with drum_paid_out; None: not monitored", None, positive=True)],
+         _CURVE_QTY)
+def curve_drum(contour, arc, J, phi0, omega0, w, side1, tol, mu, r_pin, stored):
     """Curve drum [contour in m, J in kg*m^2, angles in rad]."""
-    return _curve("curve_drum", 1, contour, arc, J, phi0, omega0, w, (side1,), tol, mu, r_pin, None)
+    return _curve("curve_drum", 1, contour, arc, J, phi0, omega0, w, (side1,), tol, mu, r_pin, None, stored=stored)
 
 
 # -- static check --------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ import pytest
 from scipy.special import ellipeinc
 
 from elements.belt_contour import Contour, read_table, write_table
-from multipole import ModelError, NetlistError, pipeline
+from multipole import ModelError, MultipoleError, NetlistError, pipeline
 from multipole.netlist import load, loads
 
 BELTS = Path(__file__).resolve().parents[1] / "diagrams" / "belts"
@@ -450,3 +450,36 @@ def test_half_plane_choice_gives_the_side_of_the_contact_normal():
     with pytest.raises(ModelError) as exc:
         side_from_half_plane(0.0, "left")
     assert exc.value.code == "half_plane_ambiguous"
+
+
+# -- run-time monitors -----------------------------------------------------------------------------
+
+def test_elliptic_drum_stops_when_its_band_is_paid_out(tmp_path, ellipse):
+    """0.05 m of band stored on the elliptic drum, paid out at 0.5 rad/s: the run stops when the arc
+    between the contact points reaches 0.05 m, at the time the closed-form arc length gives."""
+    from scipy.optimize import brentq
+    write_table(tmp_path / "ellipse.csv", ellipse.theta, ellipse.r)
+    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: ellipse.csv, J: 0.01, side1: -1, stored: 0.05}"
+                         ).replace("value: -w", "value: w").replace("cd: 0.0", "cd: 1.0")   # (the rope goes slack)
+    with pytest.raises(MultipoleError) as exc:
+        pipeline.run(loads(text, str(tmp_path / "winch.yaml")), progress=False)
+    assert exc.value.code == "drum_paid_out" and "drum" in str(exc.value)
+    nu0 = 0.3 - np.pi / 2
+    t_out = brentq(lambda t: _ellipse_arc(nu0) - _ellipse_arc(nu0 - 0.5 * t) - 0.05, 0.01, 1.0)
+    t = float(str(exc.value).split("at t = ")[1].split(" s")[0])
+    assert t == pytest.approx(t_out, abs=2e-6)            # printed with 6 digits; the arc's series error ~1e-8 m
+
+
+def test_curve_roll_reports_the_capstan_limit():
+    """The toothed belt with a load torque growing by 40 N*m/s on wheel 2 and a contact friction mu_c
+    there: with mu_c = 0.2 the limit e^(0.2 pi) = 1.87 of the tension ratio is crossed (near
+    T = 10 N*m: spans 100 +- 30 N), and the run reports it on wheel 2; with mu_c = 0.5 (limit 4.8)
+    it stays silent over 0.3 s (T = 17 N*m: about 151/49 N)."""
+    text = (BELTS / "toothed_belt.yaml").read_text().replace("value: -T}", "value: -T - 40*t}")
+    assert "40*t" in text
+    found = {}
+    for mu_c in (0.2, 0.5):
+        res = pipeline.run(loads(text, str(BELTS / "ramp.yaml"), {"wheel2.mu_c": mu_c}), progress=False, t_end=0.3)
+        found[mu_c] = [m for m in res.monitors if m[2] == "capstan_limit"]
+    assert found[0.5] == [] and found[0.2] and found[0.2][0][1] == "wheel2"
+    assert 0.08 < found[0.2][0][0] < 0.2

@@ -318,13 +318,20 @@ def switch_list(writer) -> list:
 
 
 def computable_monitors(eq) -> list:
-    """The monitors ``(expr, Monitor, element)`` of ``eq`` (:class:`multipole.network.Monitor`) that its
-    states, parameters, inputs and computed variables determine (pruning may have dropped the states
-    of others).  They follow the switching functions of the laws in :func:`switch_list`: a monitor is
+    """The monitors ``(expr, Monitor, element)`` of ``eq`` (:class:`multipole.network.Monitor`), every one
+    of them (pruning keeps what they read; one the equations cannot compute is a ``ModelError``).  They follow the switching functions of the laws in :func:`switch_list`: a monitor is
     located like a switching event on every backend, but no law reads its side."""
     known = {s.symbol for s in eq.states} | set(eq.params) | set(eq.inputs) | {T}
     known |= {v for b in eq.blocks for v in b.variables}
-    return [m for m in getattr(eq, "monitors", []) if sp.sympify(m[0]).free_symbols <= known]
+    monitors = getattr(eq, "monitors", [])
+    for expr, m, owner in monitors:
+        unknown = sp.sympify(expr).free_symbols - known
+        if unknown:         # pruning keeps what monitors read: this is a defect, never a silent drop
+            raise ModelError("monitor_not_computable",
+                             f"{owner}: run-time monitor {m.code} reads {', '.join(sorted(map(str, unknown)))}, "
+                             "which the equations do not compute",
+                             "report this: the monitor would be lost")
+    return list(monitors)
 
 
 def modal_switches(writer, sw) -> dict:

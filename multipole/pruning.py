@@ -5,9 +5,10 @@ requested outputs and returns the equations restricted to the backward closure o
 over the dependency graph, with a :class:`Pruning` record of what was dropped and why.  Nothing is
 approximated: every kept variable is computed by exactly the same expressions as before.
 
-The closure starts from the symbols the outputs read and from the *protected set*: the switching
-functions that depend on time alone (steps and tables of the sources), so that the run's restarts
-at known times are the same with and without pruning.  It then follows
+The closure starts from the symbols the outputs and the elements' run-time monitors read and from
+the *protected set*: the switching functions that depend on time alone (steps and tables of the
+sources), so that the run's restarts at known times are the same with and without pruning. It then
+follows
 
 * a variable computed by a block (explicit, linear loop, Newton loop) to everything the block
   reads: a loop is kept whole, with its start values;
@@ -158,6 +159,9 @@ def prune(eq: Equations, outputs) -> tuple[Equations, Pruning]:
     outputs = list(outputs)
     graph = _Graph(eq)
     seeds = set().union(*(sp.sympify(eq.output(o)).free_symbols for o in outputs)) if outputs else set()
+    # the run-time monitors watch the physics whether or not anyone plots it (a drum paying out, a
+    # dead centre): what they read is kept like an output
+    seeds |= set().union(*(sp.sympify(e).free_symbols for e, _m, _o in getattr(eq, "monitors", [])))
     _seen, blocks, states = graph.closure(seeds)
     record = Pruning(outputs, len(eq.states))
     if len(blocks) == len(eq.blocks) and len(states) == len(eq.states):

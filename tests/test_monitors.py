@@ -212,3 +212,19 @@ def test_a_speed_driven_four_bar_stops_at_its_dead_centre_on_every_backend(backe
     res = pipeline.run(rocker_driven(), t_end=t_guard + 1e-3, rtol=1e-8, progress=False, backend=backend)
     [(t, el, code, _text)] = res.monitors
     assert (el, code) == ("dyad", "near_dead_centre") and abs(t - t_guard) <= 1e-6
+
+
+def test_pruning_keeps_what_a_monitor_reads_and_drops_an_unwatched_subsystem():
+    """Only ``osc.x`` is requested: a second oscillator with a monitor stays (its crossings are
+    reported at the closed-form times), a third one without a monitor is pruned away."""
+    from multipole.pruning import prune
+    plain = oscillator()
+    plain.monitors = []
+    scene = Network("scene", {"osc": oscillator(), "watched": oscillator(x0=-0.08), "unwatched": plain})
+    eq = assemble(analyse(flatten(scene)))
+    small, record = prune(eq, ["osc.x"])
+    assert sorted(name.split(".")[0] for name, _el, _why in record.dropped_states) == ["unwatched", "unwatched"]
+    t_end = 1.5 * PERIOD
+    res = simulate(compile_model(small, ["osc.x"]), t_end, t_end / 200, rtol=RTOL, atol=ATOL, progress=False)
+    watched = [t for t, el, _code, _text in res.monitors if el == "watched"]
+    assert np.max(np.abs(np.array(watched) - crossing_times(-0.08, t_end))) <= event_tolerance(-0.08)

@@ -4,11 +4,12 @@ tests/test_linkage_dynamics.py.
 1. Cost per right-hand-side call: the generated model (numpy backend: Python code; numba backend:
    compiled) against a hand-written closed-form right-hand side in the same language (minimal
    coordinate: the crank angle; coupler and rocker from the circle intersection; the reduced inertia
-   and its velocity terms by virtual power).  Calls timed interleaved, medians of 7 rounds.
+   and its velocity terms by virtual power).  Each call at a new state, CPU time, the two timed
+   interleaved, medians of 7 rounds.
 2. Whole runs at equal error: `multipole` with the numba backend against the hand-written model
    under scipy's solve_ivp (DOP853), each over a ladder of tolerances; error = max |crank angle -
    reference| over the output grid (reference: the hand model at rtol 1e-13).
-3. check + compile time of the scenes in diagrams/linkages/.
+3. check + model build (CPU time, an empty cache) of the scenes in diagrams/linkages/.
 
     python benchmarks/linkage_bench.py
 """
@@ -90,32 +91,38 @@ def hand_accel(th, w):
     return force / mass
 
 
-def _median_call(fun, args, n=2000, rounds=7):
-    times = []
-    for _ in range(rounds):
-        t0 = time.perf_counter()
-        for _ in range(n):
-            fun(*args)
-        times.append((time.perf_counter() - t0) / n)
-    return float(np.median(times)), float(np.ptp(times) / np.median(times))
+def _cpu_per_call(fun, x, n):
+    """CPU time per call of ``fun(0, x)`` [s] over ``n`` calls, each at a new state (``x[0]`` moved
+    by 1e-9: the integrated start of the position closure is then off the closure, as in a run)."""
+    x = np.array(x, dtype=float)
+    t0 = time.process_time()
+    for _ in range(n):
+        x[0] += 1e-9
+        fun(0.0, x)
+    return (time.process_time() - t0) / n
 
 
-def per_call():
+def per_call(rounds=7, n=1000):
+    """``[(code, generated [s], hand-written [s], ratio, spread)]``: medians over ``rounds`` interleaved
+    rounds of CPU time per call; the spread is the ratio's lowest and highest over the rounds."""
     import multipole as mp
     from multipole import pipeline
     sc = mp.loads(SCENE, "fourbar.yaml")
     model = pipeline.model(sc)
     x = np.array(model.x0, dtype=float)
     y = np.array([PHI0, 0.0])
-    rows = []
-    rounds = {"generated": [], "hand": []}
-    for _ in range(5):                                 # interleaved: A B A B ...
-        rounds["generated"].append(_median_call(model.rhs, (0.0, x), 500, 1)[0])
-        rounds["hand"].append(_median_call(hand_rhs, (0.0, y), 500, 1)[0])
-    gen, hand = np.median(rounds["generated"]), np.median(rounds["hand"])
-    rows.append(("Python", gen, hand, gen / hand))
-    rows.append(("numba (compiled loop)",) + per_call_compiled(sc))
-    return rows
+    times = {"generated": [], "hand": []}
+    for _ in range(rounds):                            # interleaved: A B A B ...
+        times["generated"].append(_cpu_per_call(model.rhs, x, n))
+        times["hand"].append(_cpu_per_call(hand_rhs, y, n))
+    return [("Python (numpy backend)",) + _summary(times), ("numba (compiled loop)",) + per_call_compiled(sc)]
+
+
+def _summary(times):
+    gen, hand = np.array(times["generated"]), np.array(times["hand"])
+    ratios = gen / hand
+    return float(np.median(gen)), float(np.median(hand)), float(np.median(ratios)), (float(ratios.min()),
+                                                                                     float(ratios.max()))
 
 
 def per_call_compiled(sc, n=200_000, rounds=7):
@@ -159,8 +166,7 @@ def per_call_compiled(sc, n=200_000, rounds=7):
             t0 = time.process_time()
             fn()
             times[k].append((time.process_time() - t0) / n)
-    gen, hand = float(np.median(times["generated"])), float(np.median(times["hand"]))
-    return gen, hand, gen / hand
+    return _summary(times)
 
 
 def equal_error():
@@ -192,34 +198,57 @@ def equal_error():
     return out
 
 
+def at_equal_error(ladder, targets=(1e-6, 1e-8, 1e-9)):
+    """``[(error, hand CPU, numba CPU)]``: each contender's CPU time at the same error, interpolated
+    linearly in log(error)-log(CPU) between the rungs of its ladder (targets outside a ladder's
+    range are left out)."""
+    rows = []
+    for target in targets:
+        cpu = []
+        for err_at, cpu_at in ((1, 2), (3, 4)):
+            pts = sorted((math.log(r[err_at]), math.log(r[cpu_at])) for r in ladder)
+            xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+            lt = math.log(target)
+            cpu.append(math.exp(float(np.interp(lt, xs, ys))) if xs[0] <= lt <= xs[-1] else None)
+        if None not in cpu:
+            rows.append((target, cpu[0], cpu[1]))
+    return rows
+
+
 def check_compile():
     import multipole as mp
     from multipole import pipeline
     rows = []
     for path in sorted((ROOT / "diagrams" / "linkages").glob("*.yaml")):
         os.environ["MULTIPOLE_CACHE"] = tempfile.mkdtemp()
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         sc = mp.load(path)
         pipeline.check(sc)
-        t1 = time.perf_counter()
+        t1 = time.process_time()
         pipeline.model(sc)
-        rows.append((path.name, t1 - t0, time.perf_counter() - t1))
+        rows.append((path.name, t1 - t0, time.process_time() - t1))
     return rows
 
 
 def main():
-    print("## cost per right-hand-side call (torque-driven four-bar)")
-    print("| code | generated [µs] | hand-written [µs] | generated / hand |")
+    print("## cost per right-hand-side call (torque-driven four-bar, CPU time, interleaved, medians of 7)")
+    print("| code | generated [µs] | hand-written [µs] | generated / hand [lowest-highest] |")
     print("| --- | --- | --- | --- |")
-    for lang, gen, hand, ratio in per_call():
-        print(f"| {lang} | {gen * 1e6:.1f} | {hand * 1e6:.1f} | {ratio:.2f} |")
+    for lang, gen, hand, ratio, (lo, hi) in per_call():
+        print(f"| {lang} | {gen * 1e6:.3g} | {hand * 1e6:.3g} | {ratio:.2f} [{lo:.2f}-{hi:.2f}] |")
     print("\n## whole runs (crank angle over 2 s, CPU time, interleaved, medians of 5 [lowest-highest])")
     print("| rtol | hand + solve_ivp DOP853: error | CPU [ms] | numba backend (warm call): error | CPU [ms] |")
     print("| --- | --- | --- | --- | --- |")
-    for rtol, eh, ch, en, cn, sp in equal_error():
+    ladder = equal_error()
+    for rtol, eh, ch, en, cn, sp in ladder:
         print(f"| {rtol:.0e} | {eh:.1e} | {ch * 1e3:.1f} [{sp['hand'][0] * 1e3:.1f}-{sp['hand'][1] * 1e3:.1f}] | "
               f"{en:.1e} | {cn * 1e3:.2f} [{sp['numba'][0] * 1e3:.2f}-{sp['numba'][1] * 1e3:.2f}] |")
-    print("\n## check and compile (new cache)")
+    print("\n## at equal error (CPU interpolated log-log along each ladder)")
+    print("| error | hand + solve_ivp [ms] | numba backend [ms] | hand / numba |")
+    print("| --- | --- | --- | --- |")
+    for target, hand, numba in at_equal_error(ladder):
+        print(f"| {target:.0e} | {hand * 1e3:.1f} | {numba * 1e3:.2f} | {hand / numba:.0f} |")
+    print("\n## check and model build (numpy backend's code), new cache, CPU time")
     print("| scene | check [s] | compile [s] |")
     print("| --- | --- | --- |")
     for name, tc, tm in check_compile():

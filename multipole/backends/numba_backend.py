@@ -8,8 +8,8 @@ How a run goes:
    subclass of the kernel's code writer (:class:`multipole.codegen.Writer`): the right-hand side,
    the forward-mode Jacobian, the outputs and the switching functions, each as a numba ``cfunc``
    ``void fun(double t, double *x, double *out, double *w)`` that writes into ``out``; numeric
-   linear loops are solved by a small LU, nonlinear loops by a damped Newton iteration
-   warm-started from the work array ``w``.  The source is remembered in this process by the
+   linear loops are solved by unrolled elimination (up to 8 unknowns) or Gaussian elimination in
+   the work array ``w``, nonlinear loops by a damped Newton iteration warm-started from ``w``.  The source is remembered in this process by the
    structure of the equations.
 2. *Compilation* — the source is written to ``$MULTIPOLE_CACHE/numba/m_<hash>.py`` (default
    ``~/.cache/multipole``; the hash covers the source, the kernels, numba and Python) and

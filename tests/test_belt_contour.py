@@ -483,3 +483,14 @@ def test_curve_roll_reports_the_capstan_limit():
         found[mu_c] = [m for m in res.monitors if m[2] == "capstan_limit"]
     assert found[0.5] == [] and found[0.2] and found[0.2][0][1] == "wheel2"
     assert 0.08 < found[0.2][0][0] < 0.2
+
+
+def test_a_contour_the_series_cannot_follow_is_refused():
+    """A coarse table (90 points) whose spline ripples between its knots, asked for 1e-13 m: the left-out
+    harmonics stay above that beyond 400 (they decay like k^-4 from the knots' jumps of r''')."""
+    coarse = Contour.from_function(_ellipse_r, 90, "coarse")
+    with pytest.raises(ModelError) as exc:
+        coarse.series(1e-13)
+    assert exc.value.code == "contour_too_rough" and "coarse" in exc.value.message
+    a, _b = coarse.series(1e-6)                                    # a looser tolerance is met
+    assert len(a) <= 401 and coarse.series_error[0] <= 1e-6

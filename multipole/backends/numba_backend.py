@@ -19,7 +19,10 @@ How a run goes:
    ``MULTIPOLE_CACHE=off``) a private folder of the process is used (see :func:`cache_dir`).
    The integrator loops of :mod:`multipole.backends.numba_kernels` do not depend on the
    model (they call it through function addresses): they are compiled once per installation and
-   kept in numba's cache.
+   kept in numba's cache.  In another process the model is rebuilt without the equations:
+   :meth:`NumbaBackend.describe` gives the source and what the driver reads besides, which
+   :func:`multipole.pipeline.run` keeps in an authenticated entry, and :meth:`NumbaBackend.restore`
+   loads the module from it (docs/backends.md, "Model cache").
 3. *Run* — the shared driver (:func:`multipole.simulate.simulate`: options, grid, ``auto``,
    time-switch schedule, progress, statistics, errors) calls :class:`NumbaIntegrator`: the
    compiled loop integrates from 0 to ``t_end``, fills the ``dt_out`` grid from the dense output

@@ -984,23 +984,35 @@ def _const(e, values: dict) -> float | None:
 
 
 def _term(e, printer, values: dict) -> str | None:
-    """``e`` as code if it is a variable, a constant (see :func:`_const`), or a constant times a
-    variable (-1 included), else None.  The parameters' values are printed as sympy would print the
-    folded expression, with the same float products."""
+    """``e`` as code if it is a variable, a constant (see :func:`_const`), or a product of constants
+    (integers among them) and one variable or a variable to an integer power ≥ 2 (``-w`` included),
+    else None.  The parameters' values are printed as sympy would print the folded expression, with
+    the same float products (sympy multiplies a product's numbers in the order of its arguments)."""
     if e.is_Symbol and e not in values:
         return printer._print_Symbol(e)
     c = _const(e, values)
     if c is not None:
         return printer._print_Float(c)
-    if e.is_Mul and len(e.args) == 2:
-        for c, w in (e.args, e.args[::-1]):
-            if w.is_Symbol and w not in values:
-                if c is sp.S.NegativeOne:
-                    return "-" + printer._print_Symbol(w)
-                v = _const(c, values)
-                if v is not None:
-                    return f"{printer._print_Float(v)}*{printer._print_Symbol(w)}"
-    return None
+    if not e.is_Mul:
+        return None
+    w, coeff, folded = None, 1.0, False
+    for f in e.args:
+        v = _const(f, values)
+        if v is not None:
+            coeff, folded = coeff * v, True
+        elif f.is_Integer:
+            coeff *= float(f)
+        elif w is None and (f.is_Symbol and f not in values or f.is_Pow and f.base.is_Symbol
+                            and f.base not in values and f.exp.is_Integer and f.exp > 1):
+            w = f
+        else:
+            return None
+    if w is None:
+        return None
+    var = printer._print_Symbol(w) if w.is_Symbol else f"{printer._print_Symbol(w.base)}**{int(w.exp)}"
+    if folded:
+        return f"{printer._print_Float(coeff)}*{var}"
+    return "-" + var if e.args[0] is sp.S.NegativeOne and len(e.args) == 2 else None
 
 
 def _plain(e, printer, values: dict) -> str | None:

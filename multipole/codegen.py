@@ -20,7 +20,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .equations import Equations
+from .equations import Equations, derivative
 from .errors import ModelError, NewtonError
 from .primitives import T
 from .stages import bulk
@@ -1133,7 +1133,7 @@ def _diff(expr, w):
         if factors.count(w) == 1 and not any(w in f.free_symbols for f in factors if f != w):
             parts.append(sp.Mul(*[f for f in factors if f != w]))
         else:
-            parts.append(sp.diff(term, w))
+            parts.append(derivative(term, w))
     return sp.Add(*parts)
 
 

@@ -340,7 +340,8 @@ def planar_band_roll(ctx):
             problems.append(f"s{k} = {sk:+g}, the roll's w = {w:+g} at its e{j} asks for {w if j == '1' else -w:+g}")
         centre, end = ports.get(f"{roll}.c.x"), ports.get(f"{span}.p{k}.x")
         if centre and end and node_of.get(centre, "c") != node_of.get(end, "e"):
-            problems.append(f"{span}.p{k} is not joined to {roll}.c (the span would pull another point)")
+            problems.append(f"{span}.p{k} is not joined to {roll}.c (the span pulls the roll through its centre "
+                            "port: bearing load, pin friction, outputs Fx, Fy)")
         if problems:
             yield Diagnostic("planar_band_roll", f"{span}.e{k} runs onto {roll}.e{j}, but " + "; ".join(problems),
                              elements=[span, roll],

@@ -65,7 +65,10 @@ def band(EA, cd, l, l0, dir, gamma):
         "J": junction_a(["p1", "p2", "e1", "e2", "x"], "translational", [-d, d, -1, -1, -1]),
         "K": junction_b(["x", "c", "r"], "translational"),
         "c": C(law=_S("EA") / lx * sp.Max(q, 0), dom="translational", q0=_S("l") - _S("l0")),
-        "r": R(law=sp.Heaviside(q) * sp.Max(-_S("EA") / lx * q, _S("cd") / lx * f), dom="translational"),
+        # cd = 0: no damper law at all; its clamp would switch at the same root as the spring (q and
+        # EA q/l_x), and two switches crossing at one instant chatter at the slack onset
+        "r": R(law=0 if sp.sympify(cd).is_zero else sp.Heaviside(q) * sp.Max(-_S("EA") / lx * q, _S("cd") / lx * f),
+               dom="translational"),
         "g1": Sf(0, "rotational"), "g2": Sf(0, "rotational")}
     connections = [["J.x", "K.x"], ["K.c", "c.p"], ["K.r", "r.p"]]
     ports = {"e1.l": "J.e1", "e1.gamma": "g1.p", "e2.l": "J.e2", "e2.gamma": "g2.p", "p1": "J.p1", "p2": "J.p2"}

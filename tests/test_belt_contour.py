@@ -494,3 +494,20 @@ def test_a_contour_the_series_cannot_follow_is_refused():
     assert exc.value.code == "contour_too_rough" and "coarse" in exc.value.message
     a, _b = coarse.series(1e-6)                                    # a looser tolerance is met
     assert len(a) <= 401 and coarse.series_error[0] <= 1e-6
+
+
+def test_an_undamped_rope_goes_slack_once_off_a_cam(tmp_path):
+    """A drum whose contour is a circle of 0.1 m off its axis by 0.02 m (support function
+    p = 0.1 + 0.02 cos nu) pays out its rope (cd = 0, stretch 0.01 m): the rope goes slack once, when
+    the paid-out X(phi) = 0.1 phi + 0.02 (sin nu0 - sin(nu0 - phi)) reaches 0.01 m (nu0 = 0.3 - pi/2).
+    With the damper's clamp switching at the spring's root too, the run chattered."""
+    from scipy.optimize import brentq
+    cam = Contour.from_support(lambda nu: 0.1 + 0.02 * np.cos(nu), lambda nu: -0.02 * np.sin(nu), 720, "offset")
+    write_table(tmp_path / "offset.csv", cam.theta, cam.r)
+    text = WINCH.replace("{DRUM}", "{type: curve_drum, contour: offset.csv, J: 0.01, side1: -1}").replace(
+        "value: -w", "value: w")
+    res = pipeline.run(loads(text, str(tmp_path / "w.yaml")), progress=False, outputs=["rope.F", "rope.stretch"])
+    nu0 = 0.3 - np.pi / 2
+    t_slack = brentq(lambda t: 0.1 * 0.5 * t + 0.02 * (np.sin(nu0) - np.sin(nu0 - 0.5 * t)) - 0.01, 0.0, 1.0)
+    assert len(res.events) == 1 and res.events[0][0] == pytest.approx(t_slack, abs=1e-8)
+    assert res.outputs["rope.F"][-1] == 0.0 and res.outputs["rope.stretch"][-1] < 0

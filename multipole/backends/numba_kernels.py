@@ -139,16 +139,34 @@ def call_model(typingctx, address, t, x, out, w):
 
 # -- small dense linear algebra (n is small; LAPACK call overhead would dominate) ------------------
 @njit(cache=True)
+def _pivot(A, k, n):
+    """(row, |entry|) of the largest entry in magnitude of column k of ``A`` at or below row k."""
+    p = k
+    big = abs(A[k, k])
+    for i in range(k + 1, n):
+        if abs(A[i, k]) > big:
+            big = abs(A[i, k])
+            p = i
+    return p, big
+
+
+@njit(cache=True)
+def _back_substitute(U, b):
+    """Solve ``U z = b`` in place in ``b`` for the upper triangle of ``U`` (its diagonal included)."""
+    n = b.size
+    for i in range(n - 1, -1, -1):
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= U[i, j] * b[j]
+        b[i] = s / U[i, i]
+
+
+@njit(cache=True)
 def lu_factor(A, piv):
     """LU with partial pivoting of ``A`` in place (real or complex); ``piv`` gets the row swaps."""
     n = A.shape[0]
     for k in range(n):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, n):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
+        p = _pivot(A, k, n)[0]
         piv[k] = p
         if p != k:
             for j in range(n):
@@ -181,11 +199,7 @@ def lu_solve(LU, piv, b):
         for j in range(i):
             s -= LU[i, j] * b[j]
         b[i] = s
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= LU[i, j] * b[j]
-        b[i] = s / LU[i, i]
+    _back_substitute(LU, b)
 
 
 @njit(cache=True)
@@ -196,12 +210,7 @@ def gauss_solve(A, b):
     a pivot is zero."""
     n = b.size
     for k in range(n):
-        p = k
-        big = abs(A[k, k])
-        for i in range(k + 1, n):
-            if abs(A[i, k]) > big:
-                big = abs(A[i, k])
-                p = i
+        p, big = _pivot(A, k, n)
         if big == 0.0:
             for i in range(n):
                 b[i] = np.nan
@@ -222,11 +231,7 @@ def gauss_solve(A, b):
                 for j in range(k + 1, n):
                     A[i, j] -= a * A[k, j]
                 b[i] -= a * b[k]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= A[i, j] * b[j]
-        b[i] = s / A[i, i]
+    _back_substitute(A, b)
     return True
 
 
@@ -473,7 +478,8 @@ def _predict_factor(h_abs, h_abs_old, err, err_old):
 @njit(cache=True)
 def radau_step(rhs, jac, w, fs, iw, x, f, J, LUr, pr, LUc, pc, Q, y_old, ws, wc):
     """One accepted Radau IIA(5) step from (fs[F_T], x); False if the step size underflowed."""
-    Z, F, W, x_new, tmp, scale, br, ff, Zprev = ws[0:3], ws[3:6], ws[6:9], ws[9], ws[10], ws[11], ws[12], ws[13], ws[14:17]
+    Z, F, W, x_new, tmp = ws[0:3], ws[3:6], ws[6:9], ws[9], ws[10]
+    scale, br, ff, Zprev = ws[11], ws[12], ws[13], ws[14:17]
     bc = wc
     n = x.size
     t = fs[F_T]

@@ -2,13 +2,11 @@
 cache without deriving the equations again (issue 11), and a tampered entry is never used.
 
 The entries are planted as docs/backends.md ("Model cache") describes them; the MACs are computed
-here with :mod:`hmac`, independently of :mod:`multipole.cache`.  Expected numbers come from the
+by tests/test_cache_trust.py's ``signed`` with :mod:`hmac`, independently of :mod:`multipole.cache`.  Expected numbers come from the
 closed form of a mass dragged through a damper, v = F/d (1 - exp(-d t/m)).
 """
 from __future__ import annotations
 
-import hashlib
-import hmac
 import json
 import os
 import subprocess
@@ -24,24 +22,12 @@ pytest.importorskip("numba")
 from multipole import pipeline  # noqa: E402
 from multipole.backends import numba_backend  # noqa: E402
 from multipole.netlist import load  # noqa: E402
+from test_cache_trust import DRAG as DRAG_NUMPY, D, F, M, signed  # noqa: E402
 from test_monitors import NETLIST as MONITORED, PERIOD, crossing_times, oscillator_type  # noqa: E402,F401
 
-M, D, F = 2.0, 8.0, 10.0
-DRAG = f"""
-name: drag
-parameters: {{m: {M}, d: {D}, F: {F}}}
-elements:
-  push:   {{type: force_source, value: "F"}}
-  body:   {{type: mass, m: m}}
-  damper: {{type: damper, d: d, domain: translational}}
-  wall:   {{type: ground, domain: translational}}
-connections:
-  - [push.p, body.a]
-  - [body.b, damper.a]
-  - [damper.b, wall.p]
-outputs: [body.v]
-simulate: {{t_end: 1.0, dt_out: 0.01, rtol: 1.0e-10, atol: 1.0e-13, backend: numba}}
-"""
+#: the drag scene of tests/test_cache_trust.py, run on the numba backend
+DRAG = DRAG_NUMPY.replace("atol: 1.0e-13}", "atol: 1.0e-13, backend: numba}")
+assert DRAG != DRAG_NUMPY
 #: the runs use rtol 1e-10, atol 1e-13: the global error on v (at most F/d = 1.25 m/s) stays far below
 TOL = 1e-7 * F / D
 
@@ -87,12 +73,6 @@ def run(netlist):
 def entry_of(root) -> Path:
     (path,) = root.glob("numba-*.entry")
     return path
-
-
-def signed(key: bytes, name: str, payload: bytes) -> bytes:
-    """An entry as docs/backends.md describes it: magic, MAC over name + newline + payload."""
-    mac = hmac.new(key, name.encode() + b"\n" + payload, hashlib.sha256).hexdigest()
-    return b"multipole-cache-1 " + mac.encode() + b"\n" + payload
 
 
 def genuine(root, netlist):

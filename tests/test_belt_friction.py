@@ -27,6 +27,7 @@ V_S = 1e-4                      # the pulleys' default creep speed [m/s]
 
 
 def _with_load(load: str, **overrides):
+    assert TEXT.count("value: -rate*t}") == 1
     return scene(TEXT.replace("value: -rate*t}", f"value: -({load})}}"), overrides)
 
 

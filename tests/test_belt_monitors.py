@@ -70,8 +70,10 @@ def test_drum_with_rope_to_spare_runs_to_the_end():
 # -- capstan limit on a no-slip roll (run-time, reported) -----------------------------------------
 
 def _drive_with_mu_c(mu_c: float) -> str:
-    return DRIVE.replace("p1: {type: band_roll, r: 0.05, J: 1.0e-3}",
+    text = DRIVE.replace("p1: {type: band_roll, r: 0.05, J: 1.0e-3}",
                          f"p1: {{type: band_roll, r: 0.05, J: 1.0e-3, mu_c: {mu_c}}}")
+    assert text != DRIVE
+    return text
 
 
 def test_capstan_limit_is_reported_when_the_tension_ratio_reaches_exp_mu_wrap():

@@ -3,8 +3,8 @@
 Each function takes a :class:`~multipole.netlist.Scene` and returns the object of its stage.
 Compiled models are cached in memory and on disk (``$MULTIPOLE_CACHE``, default
 ``~/.cache/multipole``) by the scene's digest (netlist text and overrides), the requested outputs
-and a hash of the kernel's and the element libraries' source, so a second ``simulate`` of an unchanged scene skips analysis
-and code generation.  ``MULTIPOLE_CACHE=off`` disables the disk cache.  Disk entries are
+and a hash of the kernel's and the element libraries' source, so a second ``simulate`` of an
+unchanged scene skips analysis and code generation.  ``MULTIPOLE_CACHE=off`` disables the disk cache.  Disk entries are
 authenticated with the user's key and the folder must be private (:mod:`multipole.cache`).
 """
 from __future__ import annotations
@@ -134,7 +134,7 @@ def model(scene: Scene, outputs=None, prune: bool = True) -> Model:
         m.compile_time = time.perf_counter() - start
         m.meta["warnings"] = _warning_lines(eq.analysis)
         if slot is not None:
-            _store(*slot, m)
+            _store(*slot, {"source": m.source, "meta": m.meta})
     _MODELS[key] = m
     return m
 
@@ -209,9 +209,10 @@ def _restore(path: Path, secret: bytes) -> Model | None:
     return m
 
 
-def _store(path: Path, secret: bytes, m: Model) -> None:
+def _store(path: Path, secret: bytes, payload: dict) -> None:
+    """Write ``payload`` as JSON to the authenticated entry at ``path``."""
     try:
-        cache.write_entry(path, secret, json.dumps({"source": m.source, "meta": m.meta}).encode())
+        cache.write_entry(path, secret, json.dumps(payload).encode())
     except OSError:
         pass                    # a full or read-only disk must not stop a simulation
 
@@ -288,11 +289,7 @@ def _run_backend(backend, scene: Scene, outputs, prune: bool, options) -> Result
     result.stats["states_pruned"] = record.states_pruned
     data = backend.describe(eq, outs) if slot is not None and result.stats.get("backend") == backend.name else None
     if data is not None:
-        payload = {"model": data, "warnings": warning_lines, "states_pruned": record.states_pruned}
-        try:
-            cache.write_entry(slot[0], slot[1], json.dumps(payload).encode())
-        except OSError:
-            pass                # a full or read-only disk must not stop a simulation
+        _store(*slot, {"model": data, "warnings": warning_lines, "states_pruned": record.states_pruned})
     return result
 
 

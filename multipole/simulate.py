@@ -323,7 +323,8 @@ def _jacobian_product(model, n: int):
     sparse = getattr(model, "jac_sparse", None)
     if sparse is not None or n <= DENSE_JACOBIAN_STATES or not hasattr(model, "rhs"):
         from scipy.sparse import csr_array
-        J = sparse(0.0, model.x0) if sparse is not None else csr_array(np.asarray(model.jac(0.0, model.x0), dtype=float))
+        J = (sparse(0.0, model.x0) if sparse is not None
+             else csr_array(np.asarray(model.jac(0.0, model.x0), dtype=float)))
         return (lambda v: J @ v), "Jacobian products"
     x0 = np.asarray(model.x0, dtype=float)
     f0 = np.asarray(model.rhs(0.0, x0), dtype=float)
@@ -983,8 +984,9 @@ def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> t
     ``[(t, side after), ...]`` (a polynomial in t, :func:`multipole.codegen.time_switches`) those
     are taken.  The others are sampled at ``t_end/TIME_SAMPLES`` or ``SAMPLES_PER_HALF_PERIOD``
     points per half period of that sine, whichever is finer, and at those crossings, and every sign
-    change between samples is located by Brent's method (to 1e-14 s).  Returns ``([(t, k, side after), ...] in time order,
-    sides)``, ``sides[k]`` being the side (±1) of function k at the start (its first non-zero sign).
+    change between samples is located by Brent's method (to 1e-14 s).  Returns
+    ``([(t, k, side after), ...] in time order, sides)``, ``sides[k]`` being the side (±1) of
+    function k at the start (its first non-zero sign).
     Sampling stops after ``MAX_EVENTS + 1`` crossings (the run then stops as chattering)."""
     time_only = np.array(time_only, dtype=bool)       # a copy: cleared below where roots are known
     sides = np.ones(len(time_only))

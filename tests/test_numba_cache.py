@@ -2,8 +2,9 @@
 cache without deriving the equations again (issue 11), and a tampered entry is never used.
 
 The entries are planted as docs/backends.md ("Model cache") describes them; the MACs are computed
-by tests/test_cache_trust.py's ``signed`` with :mod:`hmac`, independently of :mod:`multipole.cache`.  Expected numbers come from the
-closed form of a mass dragged through a damper, v = F/d (1 - exp(-d t/m)).
+by tests/test_cache_trust.py's ``signed`` with :mod:`hmac`, independently of
+:mod:`multipole.cache`.  Expected numbers come from the closed form of a mass dragged through a
+damper, v = F/d (1 - exp(-d t/m)).
 """
 from __future__ import annotations
 

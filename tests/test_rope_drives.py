@@ -266,9 +266,10 @@ def test_crane_has_the_same_states_with_ten_times_longer_spans():
 
 def test_crane_energy_balance_over_the_lift():
     """Lift (0 .. 12.5 s: D1 winds 9 m of rope in with ramps of 2 s, the hook rises 4.5 m): the work
-    of the two drum drives equals the change of kinetic energy (carriage, hook with load, rolls, drums), potential energy
-    of the hook and strain energy EA delta^2/(2 l_x) of the 12 spans, plus the damper losses and the
-    strain energy of the rope material entering a span unstrained from a roll, F_k^2/(2 EA) l_x'
+    of the two drum drives equals the change of kinetic energy (carriage, hook with load, rolls,
+    drums), potential energy of the hook and strain energy EA delta^2/(2 l_x) of the 12 spans, plus
+    the damper losses and the strain energy of the rope material entering a span unstrained from a
+    roll, F_k^2/(2 EA) l_x'
     (docs/belts.md).  Quadrature: trapezoids on the output grid; the drum torques jump at the ramp
     corners (drum inertia), which makes the trapezoid error first order in dt: the balance is
     extrapolated from dt and 2 dt (Richardson), and must close to 2e-6 of the work (measured 6e-8;

@@ -107,7 +107,8 @@ class Backend:
     The model ``compile`` returns has what :func:`multipole.simulate.simulate` reads:
     ``name``, ``x0``, ``state_names``, ``output_names``, ``output_units``, ``jac(t, x)`` (for
     ``auto``; a dense array), optionally ``jac_sparse(t, x)`` (a ``scipy.sparse`` matrix, used for
-    ``auto``'s estimate and given to Radau and BDF), ``n_switches``, ``switch_text``, ``switches(t, x)``, ``switch_time_only``,
+    ``auto``'s estimate and given to Radau and BDF), ``n_switches``, ``switch_text``, ``switches(t, x)``,
+    ``switch_time_only``,
     ``switch_rate``, ``switch_roots`` (the time-switches), ``outputs(t, x)`` or
     ``outputs_on_grid(t_grid, states)``, and optionally ``compile_time``, ``translate_time`` [s]
     and ``cached``; with the default integrator also what :class:`multipole.codegen.Model` has

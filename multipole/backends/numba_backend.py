@@ -9,8 +9,8 @@ How a run goes:
    the forward-mode Jacobian, the outputs and the switching functions, each as a numba ``cfunc``
    ``void fun(double t, double *x, double *out, double *w)`` that writes into ``out``; numeric
    linear loops are solved by unrolled elimination (up to 8 unknowns) or Gaussian elimination in
-   the work array ``w``, nonlinear loops by a damped Newton iteration warm-started from ``w``.  The source is remembered in this process by the
-   structure of the equations.
+   the work array ``w``, nonlinear loops by a damped Newton iteration warm-started from ``w``.  The
+   source is remembered in this process by the structure of the equations.
 2. *Compilation* — the source is written to ``$MULTIPOLE_CACHE/numba/m_<hash>.py`` (default
    ``~/.cache/multipole``; the hash covers the source, the kernels, numba and Python) and
    executed; numba compiles the functions with ``cache=True``, so a later run of the same model,
@@ -207,7 +207,8 @@ def _scalar_newton(k: int, n: int, off: int) -> str:
     store = [f"                w[{off + i}] = {z}" for i, z in enumerate(zs)]
     done = ["                w[0] += total", "                w[1] += 1"] + store + [f"                return {tup}"]
     lines = ['@njit(cache=True, error_model="numpy")', f"def _newton{k}(w):",
-             f'    """Damped Newton for the loop {k} in scalars, warm-started from w[{off}:{off + n}], then from zero."""',
+             f'    """Damped Newton for the loop {k} in scalars, warm-started from w[{off}:{off + n}], then '
+             'from zero."""',
              "    total = 0", "    for attempt in range(2):",
              f"        {tup} = (" + ", ".join(f"w[{off + i}]" for i in r) + ",) if attempt == 0 else ("
              + ", ".join("0.0" for _ in r) + ",)",
@@ -363,7 +364,8 @@ class _Writer(codegen.Writer):
         body += ["    _J = out", f"    for _i in range({n}):", f"        for _j in range({n}):",
                  "            _J[_i, _j] = 0.0"]
         body += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
-        return [f"@cfunc({_SIG}, cache=True, error_model='numpy')", "def jac(t, xp, outp, wp):", '    """Jacobian d(rhs)/dx into out."""',
+        return [f"@cfunc({_SIG}, cache=True, error_model='numpy')", "def jac(t, xp, outp, wp):",
+                '    """Jacobian d(rhs)/dx into out."""',
                 f"    x = carray(xp, ({n},), np.float64)", f"    out = carray(outp, ({n}, {n}), np.float64)",
                 "    w = carray(wp, (N_WORK,), np.float64)"] + body + [""]
 

@@ -191,6 +191,7 @@ def regularisation():
     for m, v_s in [(0.01, 1e-2), (0.01, 1e-3), (0.01, 1e-4), (0.01, 1e-5), (0.01, 1e-6), (0.1, 1e-4), (0.001, 1e-4)]:
         text = SCENE.read_text().replace("omega0: w}", f"omega0: w, m: {m}, v_s: {v_s}}}").replace(
             "omega0: w*r1/r2}", f"omega0: w*r1/r2, m: {m}, v_s: {v_s}}}")
+        assert text.count(f"m: {m}, v_s: {v_s}") == 2, "the scene's pulleys are no longer written as expected"
         from multipole.netlist import loads
         sc = loads(text, "friction_drive.yaml")
         res = pipeline.run(sc, rtol=1e-9, atol=1e-12, dt_out=DT, progress=False,    # numpy: no compile per model

@@ -98,10 +98,12 @@ def measure(n: int) -> dict:
             "per_step_us": 1e6 * res.stats["wall_time"] / max(res.stats["steps"], 1), "sim_max_dev": dev}
 
 
-def whole_process(n: int, c3: float = 0.0, solver: str = "auto") -> tuple[float, float]:
-    """Wall time [s] and peak resident memory [MB] of ``multipole simulate`` on a chain of ``n`` pairs
-    (hardening springs with ``c3`` [N/m³] not zero) with ``--solver solver`` and a fresh model cache,
-    in its own process (``os.wait4`` gives that child's own peak)."""
+def whole_process(n: int, c3: float = 0.0, solver: str = "auto") -> tuple[float, float, float]:
+    """Wall time [s], peak resident memory [MB] and CPU time (user + system) [s] of ``multipole
+    simulate`` on a chain of ``n`` pairs (hardening springs with ``c3`` [N/m³] not zero) with
+    ``--solver solver`` and a fresh model cache, in its own process (``os.wait4`` gives that child's
+    own peak and CPU time; on a shared machine the CPU time is the figure that does not depend on
+    the load)."""
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"chain{n}.yaml"
         path.write_text(mass_spring_chain(n, c3=c3), encoding="utf-8")
@@ -114,7 +116,7 @@ def whole_process(n: int, c3: float = 0.0, solver: str = "auto") -> tuple[float,
         wall = time.perf_counter() - t0
         if status != 0:
             raise RuntimeError(f"multipole simulate failed on chain {n} (status {status})")
-    return wall, usage.ru_maxrss / 1024.0
+    return wall, usage.ru_maxrss / 1024.0, usage.ru_utime + usage.ru_stime
 
 
 def estimate_only(sizes, before=False) -> None:
@@ -250,7 +252,7 @@ def run(sizes=(10, 100, 1000), out=ROOT / "docs" / "bench", figures=ROOT / "docs
     for n in sizes:
         runs = sorted((measure(n) for _ in range(repeats)), key=lambda r: r["compile_s"])
         row = runs[len(runs) // 2]
-        row["process_s"], row["process_rss_mb"] = whole_process(n)
+        row["process_s"], row["process_rss_mb"], _cpu = whole_process(n)
         row["load_avg"] = os.getloadavg()[0]       # other jobs on the machine: read the times with it
         rows.append(row)
         if verbose:
@@ -280,10 +282,14 @@ if __name__ == "__main__":
     ap.add_argument("--solver", default="auto", help="with --process-only: the solver")
     args = ap.parse_args()
     if args.process_only:
+        rows = []
         for n in args.process_only:
-            wall, peak = whole_process(n, args.c3, args.solver)
-            print(f"N = {n}, c3 = {args.c3:g}, {args.solver}: whole process {wall:.3g} s, peak {peak:.0f} MB, "
-                  f"load {os.getloadavg()[0]:.1f}", flush=True)
+            wall, peak, cpu = whole_process(n, args.c3, args.solver)
+            rows.append({"N": n, "wall": wall, "cpu": cpu})
+            print(f"N = {n}, c3 = {args.c3:g}, {args.solver}: whole process {wall:.3g} s (CPU {cpu:.3g} s), "
+                  f"peak {peak:.0f} MB, load {os.getloadavg()[0]:.1f}", flush=True)
+        for key in ("wall", "cpu") if len(rows) > 1 else ():
+            print(f"slope of {key}: " + ", ".join(f"{s:.2f}" for s in slopes(rows, key)))
         sys.exit(0)
     if args.plot_only:
         plot(read_rows(Path(args.out) / "chain_scaling.csv"), ROOT / "docs" / "figures" / "bench_chain_scaling.png")

@@ -92,12 +92,18 @@ def genuine(root):
 
 # -- damaged entries: rebuilt, never a crash ---------------------------------------------------------
 
-def _meta(change):
-    def plant(path, key, data):
-        data = json.loads(json.dumps(data))
-        change(data["meta"])
-        return signed(key, path.name, json.dumps(data).encode())
-    return plant
+def _part(name):
+    """A planter that applies ``change`` to the payload's part ``name`` and signs the result."""
+    def changed(change):
+        def plant(path, key, data):
+            data = json.loads(json.dumps(data))
+            change(data[name])
+            return signed(key, path.name, json.dumps(data).encode())
+        return plant
+    return changed
+
+
+_meta = _part("meta")
 
 
 def _data(value):

@@ -23,7 +23,7 @@ pytest.importorskip("numba")
 from multipole import pipeline  # noqa: E402
 from multipole.backends import numba_backend  # noqa: E402
 from multipole.netlist import load  # noqa: E402
-from test_cache_trust import DRAG as DRAG_NUMPY, D, F, M, signed  # noqa: E402
+from test_cache_trust import DRAG as DRAG_NUMPY, D, F, M, _data, _part, signed  # noqa: E402
 from test_monitors import NETLIST as MONITORED, PERIOD, crossing_times, oscillator_type  # noqa: E402,F401
 
 #: the drag scene of tests/test_cache_trust.py, run on the numba backend
@@ -133,16 +133,7 @@ def test_an_in_process_run_still_reports_derivation(root, folders):
 
 # -- tampered entries: refused, rebuilt, never run ----------------------------------------------------
 
-def _model(change):
-    def plant(path, key, data):
-        data = json.loads(json.dumps(data))
-        change(data["model"])
-        return signed(key, path.name, json.dumps(data).encode())
-    return plant
-
-
-def _data(value):
-    return lambda path, key, data: signed(key, path.name, json.dumps(value(data)).encode())
+_model = _part("model")
 
 
 def _set(k, v):

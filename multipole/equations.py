@@ -453,7 +453,6 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
                 g.add_edge(j, i)
     cond = nx.condensation(g)
     params = analysis.flat.param_values()
-    state_symbols = {s.symbol for s in analysis.states}
     blocks, closed = _closure_blocks(analysis)
     diagnostics: list[Diagnostic] = []
     for c in nx.topological_sort(cond):
@@ -498,7 +497,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             raise err
         derivative = any(eqs[i].role == "differentiated" for i in members)
         first = len(blocks)
-        if len(zs) <= CRAMER_LIMIT and A.free_symbols & state_symbols:
+        if len(zs) <= CRAMER_LIMIT and A.free_symbols - params.keys():
             blocks.append(Block("linear", zs, _cramer(A, b), res, owners, notes, A, b))
         elif len(zs) <= SYMBOLIC_LIMIT:
             sol = A.LUsolve(b)
@@ -529,8 +528,8 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
     return eq
 
 
-#: small linear loops whose matrix depends on a state (a mechanism's velocity relations) are solved by
-#: Cramer's rule up to this size (see :func:`_cramer`)
+#: small linear loops whose matrix depends on more than parameters (a mechanism's velocity relations
+#: on its angles) are solved by Cramer's rule up to this size (see :func:`_cramer`)
 CRAMER_LIMIT = 4
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from multipole import MultipoleError, pipeline
 from multipole.netlist import load
-from tests.helpers import run, scene
+from tests.helpers import refusal, run, scene
 
 BELTS = Path(__file__).resolve().parents[1] / "diagrams" / "belts"
 G, M = 9.81, 100.0
@@ -247,16 +247,7 @@ def test_band_port_in_two_connection_entries_is_refused():
 @pytest.mark.parametrize("params,code", [("l: -1.0", "bad_value"), ("l0: -0.5", "bad_length"),
                                          ("dir: 2", "bad_direction")])
 def test_bad_band_parameters_are_refused_with_a_code(params, code):
-    text = f"""
-name: bad
-elements:
-  s: {{type: band, {params}}}
-simulate: {{t_end: 1.0}}
-"""
-    with pytest.raises(MultipoleError) as exc:
-        scene(text)
-    assert exc.value.code == code
-    assert "element 's'" in str(exc.value)
+    assert refusal("band", params).code == code
 
 
 def test_band_joined_to_a_planar_port_is_a_bundle_mismatch():

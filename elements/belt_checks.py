@@ -11,7 +11,9 @@
   reports only a crossing during the run).
 
 Values are read from the scene's element parameters (numbers or formulas of the scene parameters);
-a loop whose lengths are not numbers, or that contains spans of other kinds, is listed without them.
+a loop whose lengths are not numbers, or that contains elements other than ``band`` spans and
+``band_roll`` rolls (a ``belt_pulley``, planar spans), is listed without them; ``capstan_at_rest``
+passes over a roll whose spans' pretensions are not numbers.
 """
 from __future__ import annotations
 

@@ -41,9 +41,8 @@ import math
 
 import sympy as sp
 
-from multipole import (MTF, C, Closure, Diagnostic, I, Monitor, Network, Param, Quantity, R, Se, Sketch, Tap,
+from multipole import (MTF, C, Closure, Diagnostic, I, ModelError, Monitor, Network, Param, Quantity, R, Se, Sketch, Tap,
                        element, junction_a, junction_b, register_check)
-from multipole.errors import ModelError
 
 from .belt import _BAND, _roll
 from .belt_checks import _value, band_graph

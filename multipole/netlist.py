@@ -514,7 +514,13 @@ class _Builder:
             if not isinstance(value, str) or not value.strip() or "\0" in value:
                 raise self.err("bad_value", f"{what} must be a file name, a path relative to the netlist file",
                                "e.g. contour: wheel1.csv", line, element)
+            folder = Path(self.file).resolve().parent
             path = Path(self.file).parent / value
+            if Path(value).is_absolute() or not path.resolve().is_relative_to(folder):
+                raise self.err("file_outside_folder", f"{what}: {value!r} lies outside the netlist's folder",
+                               "keep data files beside the netlist or in a folder below it and name them "
+                               "relative to it (a netlist may only read what its own folder holds)",
+                               line, element)
             try:                          # the scene's digest (cache key) covers the data file too
                 if path.is_file():        # (a device or pipe is left to the element, which refuses it)
                     with open(path, "rb") as fh:

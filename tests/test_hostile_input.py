@@ -469,3 +469,18 @@ def test_nonlinear_loop_whose_coefficient_is_a_bare_parameter(tmp_path, capsys):
         """), encoding="utf-8")
     assert main(["check", str(path)]) == 0
     assert "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["/etc/passwd", "../outside.csv", "tables/../../outside.csv"])
+def test_a_data_file_outside_the_netlists_folder_is_refused_unread(tmp_path, capsys, name):
+    """A netlist may read only the files of its own folder (and below): an absolute path or one that
+    climbs out is refused with the line and the element, before anything is opened."""
+    (tmp_path / "outside.csv").write_text("theta [rad], r [m]\n")
+    folder = tmp_path / "scene"
+    (folder / "tables").mkdir(parents=True)
+    path = folder / "wheel.yaml"
+    path.write_text(f"name: wheel\nelements:\n  w: {{type: curve_roll, contour: {name}}}\nconnections: []\n")
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error[file_outside_folder] ") and "wheel.yaml:3 element 'w'" in err, err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err

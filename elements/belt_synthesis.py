@@ -46,7 +46,8 @@ from multipole import ModelError
 
 from .belt_contour import write_table
 
-__all__ = ["Transfer", "Trace", "DBSD", "DBBD", "BandCurve", "band_curve", "evolute", "Finding",
+__all__ = ["Transfer", "Trace", "DBSD", "DBBD", "DBDS", "DBDD", "attached_trace", "BandCurve", "band_curve",
+           "evolute", "Finding",
            "Assessment", "assess", "Synthesis", "synthesise_contour", "write_contour_table",
            "read_contour_table", "Balance", "spring_band_balance", "SpringBandAnalysis",
            "spring_band_analysis", "CabinetDoor", "Band", "SynthesisWarning", "close_contour"]
@@ -256,6 +257,77 @@ class DBBD:
         dp = (d2 * dg - ds)[:, None] * u - (s * dg)[:, None] * n
         ddp = (d2 * ddg - dds + s * dg * dg)[:, None] * u + (d2 * dg * dg - 2 * ds * dg - s * ddg)[:, None] * n
         return Trace(phi, phi, 1.0, p, dp, ddp, foot, i * self.r4, gamma, p1, c34)
+
+
+def attached_trace(phi, p1, p, dp, ddp, K: int = 1) -> Trace:
+    """The trace of a band whose end is tied by a revolute joint to a point of a linkage (Ebert
+    4.3.1: DB~DD, DB~DS and every other structure without a band element of its own).  The trace
+    is the joint's path itself: ``p``, ``dp``, ``ddp`` its position in the frame and its first two
+    derivatives over the drive angle ``phi`` [m, m/rad, m/rad^2] (shape (n, 2)); the cam (pivot
+    ``p1``) turns by K*phi.  The band line is the involute's normal through the joint, so the foot
+    23, the band direction gamma (from the joint toward the cam) and the lever arm h (the band
+    travel onto the cam per radian, the joint's velocity along the band) follow from the trace."""
+    if K not in (1, -1):
+        raise ModelError("bad_assembly_mode", f"band on a linkage: K = {K!r} must be +1 or -1",
+                         "K = +1: the cam turns counter-clockwise as phi increases")
+    phi = np.asarray(phi, float)
+    p1 = np.asarray(p1, float)
+    p, dp, ddp = (np.asarray(a, float) for a in (p, dp, ddp))
+    d = p - p1
+    v = dp - K * _perp(d)                      # the joint's velocity seen from the cam (frame axes)
+    a = ddp - 2 * K * _perp(dp) - d            # its acceleration (K^2 = 1)
+    # the centre of curvature of the relative path lies toward the cam: the band points there
+    n = _perp(v) * np.sign(_cross(v, a))[:, None]
+    g = n / np.linalg.norm(n, axis=1)[:, None]
+    foot = p + np.einsum("ij,ij->i", p1 - p, g)[:, None] * g
+    lever = np.einsum("ij,ij->i", dp, g)
+    gamma = np.unwrap(np.arctan2(g[:, 1], g[:, 0]))
+    return Trace(phi, K * phi, float(K), p, dp, ddp, foot, lever, gamma, p1)
+
+
+@dataclass
+class DBDS:
+    """Structure DB~DS (Ebert 4.3.1, 7.2.2): the band pulls a slider along a guide in the frame.
+    The band is tied to the slider's joint, which runs on the line through ``guide_point`` [m] of
+    direction ``guide_angle`` [rad]; the transfer function is the joint's position x(phi) [m] along
+    the guide from ``guide_point``.  The cam (pivot ``p1``) turns by K*phi (K = +1:
+    counter-clockwise).  Ebert's 7.2.2: the guide passes through the cam pivot (the default)."""
+
+    p1: Sequence[float]
+    guide_point: Sequence[float] | None = None
+    guide_angle: float = 0.0
+    K: int = 1
+
+    def trace(self, phi, x: Transfer) -> Trace:
+        """The trace of the slider's joint for the slider position ``x(phi)`` [m]."""
+        phi = np.asarray(phi, float)
+        o = np.asarray(self.p1 if self.guide_point is None else self.guide_point, float)
+        e = np.array([math.cos(self.guide_angle), math.sin(self.guide_angle)])
+        xs, dx, ddx = (x(phi, k) for k in range(3))
+        return attached_trace(phi, self.p1, o + xs[:, None] * e, dx[:, None] * e, ddx[:, None] * e, self.K)
+
+
+@dataclass
+class DBDD:
+    """Structure DB~DD (Ebert 4.3.1): the band pulls a rocker of length ``length`` [m] pivoted in
+    the frame at ``p2`` [m]; the transfer function is the rocker angle psi(phi) [rad] (from the
+    x axis, counter-clockwise).  The cam (pivot ``p1``) turns by K*phi."""
+
+    p1: Sequence[float]
+    p2: Sequence[float]
+    length: float
+    K: int = 1
+
+    def trace(self, phi, psi: Transfer) -> Trace:
+        """The trace of the rocker's band joint for the rocker angle ``psi(phi)`` [rad]."""
+        if not self.length > 0:
+            raise ModelError("bad_length", f"DB~DD: rocker length {self.length!r} m must be > 0",
+                             "give the distance from the rocker pivot to the band joint in metres")
+        phi = np.asarray(phi, float)
+        ps, dps, ddps = (psi(phi, k) for k in range(3))
+        u = self.length * np.stack([np.cos(ps), np.sin(ps)], -1)
+        return attached_trace(phi, self.p1, np.asarray(self.p2, float) + u, dps[:, None] * _perp(u),
+                              ddps[:, None] * _perp(u) - (dps * dps)[:, None] * u, self.K)
 
 
 # -- phase 2: the band curve -------------------------------------------------------------------------
@@ -553,7 +625,8 @@ class Synthesis:
 
 def synthesise_contour(structure, transfer: Transfer, phi, path=None, *, torque=None, band=None,
                        max_radius=None) -> Synthesis:
-    """Synthesise the band-curve contour of ``structure`` (:class:`DBSD` or :class:`DBBD`) for the
+    """Synthesise the band-curve contour of ``structure`` (:class:`DBSD`, :class:`DBBD`, :class:`DBDS`
+    or :class:`DBDD`) for the
     transfer function ``transfer`` over the drive angles ``phi`` [rad] (a fine increasing grid),
     assess it (:func:`assess`; every warning is issued as a :class:`SynthesisWarning`) and, with ``path``,
     write the contour table (:func:`write_contour_table`).  A contour that cannot exist is not

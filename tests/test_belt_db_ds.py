@@ -85,7 +85,7 @@ def test_db_ds_guide_off_the_pivot_and_mirrored():
     a = math.radians(30.0)
     p1 = np.array([0.0, 0.05]) + 0.3 * np.array([math.cos(a), math.sin(a)])   # the pivot on the guide
     for K in (1, -1):
-        tr = DBDS(p1, (0.0, 0.05), a, K=K).trace(phi, Transfer(lambda p: 0.3 + x(p), x._f[1], x._f[2]))
+        tr = DBDS(p1, (0.0, 0.05), a, K=K).trace(phi, Transfer(lambda p: 0.3 + x(p), lambda p: x(p, 1), lambda p: x(p, 2)))
         curve = band_curve(tr)
         np.testing.assert_allclose(np.hypot(*curve.contour.T), R, rtol=0, atol=1e-9)
 

@@ -37,7 +37,7 @@ def compressor():
     run = (t > 2.5) & (t < 10.0)
     ax[1, 1].plot(t[run], o["P.omega"][run] / o["M.omega"][run], lw=0.8, label="omega_P / omega_M")
     ax[1, 1].axhline(0.05 / 0.15, color="k", ls=":", label="slip-free r_M / r_P = 1/3")
-    ax[1, 1].set(xlabel="t [s]", ylabel="-", title="speed ratio while driven")
+    ax[1, 1].set(xlabel="t [s]", ylabel="omega_P / omega_M [-]", title="speed ratio while driven")
     ax[1, 1].set_ylim(0.3330, 0.3342)
     ax[1, 1].legend(fontsize=8, loc="upper right")
     save(fig, OUT / "belts_compressor.png", dpi=110)

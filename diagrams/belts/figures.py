@@ -38,7 +38,7 @@ def pulley_block():
     ax2.plot(mu_f, eta, "k-", label="first principles (quasi-static)")
     ax2.plot(mus, eta_sim, "o", label="simulation, efficiency W/(4 F_E)")
     ax2.plot(mus, util, "s", mfc="none", label="simulation, F_A / F_E")
-    ax2.set(xlabel="pin friction coefficient mu", ylabel="-", title="efficiency (bolt 8 mm, r = 50/60 mm)")
+    ax2.set(xlabel="pin friction coefficient mu", ylabel="efficiency, force ratio [-]", title="efficiency (bolt 8 mm, r = 50/60 mm)")
     ax2.legend()
     fig.tight_layout()
     fig.savefig(OUT / "belts_pulley_block.png", dpi=110)

@@ -815,8 +815,14 @@ class ScipyIntegrator:
             t, k_ev = event
             x = dense(t)
             forced = {k_ev: -g_sign[k_ev]}
-            events.append((t, k_ev))
-            if stops[k_ev] and g_sign[k_ev] > 0:        # a stop monitor crossed downwards: the run ends here
+            # switches that crossed at the same instant (a monitor on a law's own switching function):
+            # each is an event of its own, or the next segment would hold it on its old side
+            now = np.sign(np.array(model.switches(t, x), dtype=float))
+            crossed = [k_ev] + [int(k) for k in np.nonzero(watch & (now != 0) & (now != g_sign))[0] if k != k_ev]
+            for k in crossed[1:]:
+                forced[k] = now[k]
+            events.extend((t, k) for k in crossed)
+            if any(stops[k] and g_sign[k] > 0 for k in crossed):   # a stop monitor crossed downwards: the run ends
                 break
             _check_chattering(events, model.switch_text)
         stats.update({k: v for k, v in model.stats.items()})
@@ -1137,10 +1143,16 @@ class _Dense:
 
 
 def _root(model, dense, k, t0, t1):
-    """Time of the sign change of switching function ``k`` inside the step [t0, t1]."""
+    """Time of the sign change of switching function ``k`` inside the step [t0, t1], on its new side
+    (the side it has at ``t1``): a function that crosses at the same instant has crossed there too."""
     def g(tt):
         return model.switches(tt, dense(tt))[k]
+    xtol = 1e-14 * max(1.0, abs(t1))
     try:
-        return brentq(g, t0, t1, xtol=1e-14 * max(1.0, abs(t1)), rtol=4 * np.finfo(float).eps)
+        root = brentq(g, t0, t1, xtol=xtol, rtol=4 * np.finfo(float).eps)
     except ValueError:
         return t1
+    new_side, nudge = np.sign(g(t1)), xtol
+    while root < t1 and np.sign(g(root)) != new_side:
+        root, nudge = min(root + nudge, t1), 2 * nudge
+    return root

@@ -228,3 +228,30 @@ def test_pruning_keeps_what_a_monitor_reads_and_drops_an_unwatched_subsystem():
     res = simulate(compile_model(small, ["osc.x"]), t_end, t_end / 200, rtol=RTOL, atol=ATOL, progress=False)
     watched = [t for t, el, _code, _text in res.monitors if el == "watched"]
     assert np.max(np.abs(np.array(watched) - crossing_times(-0.08, t_end))) <= event_tolerance(-0.08)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_monitor_on_a_laws_own_switching_function_fires_once_per_crossing(backend):
+    """A mass between a spring (50 N/m) and a one-sided spring (200 N/m while x > 0), the monitor on
+    x itself: the monitor and the one-sided spring's switch cross at the same instants.  Each
+    downward crossing is reported once, at t_n = pi/(2 w1) + n (pi/w1 + pi/w2) with w1 = sqrt(250/m),
+    w2 = sqrt(50/m), and the work is that of the run without the monitor (it used to chatter)."""
+    q, x = sp.Symbol("q"), sp.Symbol("x")
+
+    def scene(monitors):
+        return Network("osc", {"mass": I(J=M, dom="translational"), "s1": C(c=50.0, dom="translational", q0=A),
+                               "s2": C(law=200 * sp.Max(q, 0), dom="translational", q0=A),
+                               "j": junction_b(["m", "a", "b"], "translational")},
+                       [["j.m", "mass.p"], ["j.a", "s1.p"], ["j.b", "s2.p"]], signals={"x": "s1.q"},
+                       quantities={"x": Quantity(lambda V: V.x("s1.q"), "m")}, monitors=monitors)
+
+    w1, w2 = math.sqrt(250 / M), math.sqrt(50 / M)
+    t_end = 3.0
+    expected = [math.pi / (2 * w1) + n * (math.pi / w1 + math.pi / w2) for n in range(4)]
+    assert expected[-1] < t_end < expected[-1] + math.pi / w1 + math.pi / w2
+    watched = run(scene([Monitor(x, "crossed", "x fell below 0")]), t_end, backend)
+    plain = run(scene([]), t_end, backend)
+    times = np.array([t for t, *_ in watched.monitors])
+    assert len(times) == 4 and np.max(np.abs(times - expected)) <= 100 * RTOL * A / (w1 * A) + 1e-12, times
+    assert len(watched.events) == len(plain.events)
+    assert watched.stats["steps"] <= plain.stats["steps"] + 2 * len(times)

@@ -740,7 +740,21 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
             ev_t[n_ev] = t_stop
             ev_k[n_ev] = event
             iw[I_NEV] += 1
-            if stop[event] and g_sign[event] > 0.0:
+            stopping = stop[event] and g_sign[event] > 0.0
+            # switches that crossed at the same instant (a monitor on a law's own switching function)
+            # are events of their own: the restart holds them on the new side they have at t_stop
+            call_model(switches, t_stop, x, g, w)
+            for k in range(n_sw):
+                s_now = _sign(g[k])
+                if k != event and not time_only[k] and s_now != 0.0 and s_now != g_sign[k]:
+                    if iw[I_NEV] >= ev_t.size:
+                        iw[I_STATUS] = TOO_MANY_EVENTS
+                        return
+                    ev_t[iw[I_NEV]] = t_stop
+                    ev_k[iw[I_NEV]] = k
+                    iw[I_NEV] += 1
+                    stopping = stopping or (stop[k] and g_sign[k] > 0.0)
+            if stopping:
                 iw[I_STATUS] = MONITOR_STOP
                 return
             iw[I_FORCED] = event

@@ -85,10 +85,10 @@ class _Vectors:
         self.scalar, self.small = kind == "scalar", kind == "small"
 
     def norm(self, v):
-        return abs(v) if self.scalar else math.sqrt(sum(x * x for x in v)) if self.small else np.linalg.norm(v)
+        return abs(v) if self.scalar else math.hypot(*v) if self.small else np.linalg.norm(v)
 
     def maxabs(self, v):
-        return abs(v) if self.scalar else max(abs(x) for x in v) if self.small else np.max(np.abs(v))
+        return abs(v) if self.scalar else max(map(abs, v)) if self.small else np.max(np.abs(v))
 
     def step(self, F, J):
         return _small_step(F, J) if self.small else _newton_step(F, J, self.scalar)
@@ -275,6 +275,10 @@ class _Printer(PythonCodePrinter):
                     cond.rel_op in ('<', '<=', '>', '>=') else self._print(cond))
             text = f"(({self._print(expr)}) if {test} else {text})"
         return text
+
+
+#: ``math.sin(name)`` or ``math.cos(name)`` of a plain name in generated code (:meth:`_Writer.shared_trig`)
+_TRIG_CALL = re.compile(r"math\.(sin|cos)\(([A-Za-z_]\w*)\)")
 
 
 def _ident(name: str, taken: set) -> str:
@@ -869,8 +873,34 @@ class _Writer:
 
     def function(self, name, doc, needed, ret, extra=()) -> list:
         units = _closure(self.units, needed)
-        return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + self.prologue(units, needed) + \
-            [f"    return {ret}", ""]
+        return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + \
+            self.shared_trig(self.prologue(units, needed) + [f"    return {ret}"]) + [""]
+
+    def shared_trig(self, body: list) -> list:
+        """``body`` (the lines of one Python function) with every ``math.sin(v)`` and ``math.cos(v)`` of
+        a named value ``v`` (a state, an input, a computed variable: each assigned once) in its
+        top-level statements computed once, as ``_sin_v``/``_cos_v`` just before its first use (a
+        mechanism's equations repeat the sine and cosine of each angle dozens of times; Python's
+        interpreter does not share them, numba's compiler does).  Lines of a nested function
+        (a loop's residual, indented deeper) are left alone: their names are the iteration's own."""
+        named = set(self.names.values())
+        done: set = set()
+        out = []
+
+        def share(m):
+            fn, v = m.group(1), m.group(2)
+            if v not in named:
+                return m.group(0)
+            if (fn, v) not in done:
+                done.add((fn, v))
+                out.append(f"    _{fn}_{v} = math.{fn}({v})")
+            return f"_{fn}_{v}"
+        nested = False
+        for line in body:
+            top = line.startswith("    ") and not line.startswith("     ")
+            nested = line.startswith("    def ") or (nested and not top)
+            out.append(line if nested or not top else _TRIG_CALL.sub(share, line))   # temporaries first
+        return out
 
     def jacobian_plan(self) -> "JacobianPlan":
         """The forward-mode Jacobian d(rhs)/dx through the evaluation order (sparse in the states)
@@ -918,10 +948,9 @@ class _Writer:
         if sparse:
             return self._sparse_jacobian(name, plan)
         out = [f"def {name}(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
-        out += self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
         n = len(self.states)
-        out.append(f"    _J = np.zeros(({n}, {n}))")
-        out += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
+        out += self.shared_trig(self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
+                                + [f"    _J = np.zeros(({n}, {n}))"] + [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries])
         return out + ["    return _J", ""]
 
     def _step_lines(self, plan: "JacobianPlan") -> list:
@@ -949,10 +978,10 @@ class _Writer:
                f"np.array({indptr!r}, dtype=np.int64))", "",
                f"def {name}_sparse(t, x):", '    """Jacobian d(rhs)/dx as a csc_array."""',
                "    _stats['jac_calls'] += 1"]
-        out += self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
         data = ", ".join(d for _, _, d in entries)
-        out += [f"    _data = np.array([{data}], dtype=float)",
-                f"    return csc_array((_data, {pattern}[0].copy(), {pattern}[1].copy()), shape=({n}, {n}))", ""]
+        out += self.shared_trig(self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
+                                + [f"    _data = np.array([{data}], dtype=float)"])
+        out += [f"    return csc_array((_data, {pattern}[0].copy(), {pattern}[1].copy()), shape=({n}, {n}))", ""]
         return out + self._dense_view(name)
 
     def grad(self, expr, exclude, D) -> dict:

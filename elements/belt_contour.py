@@ -38,6 +38,7 @@ import csv
 import math
 import os
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,35 @@ def _err(code: str, message: str, fix: str) -> ModelError:
     return ModelError(code, message, fix)
 
 
+def _where(source: str, lines, k: int) -> str:
+    """Point ``k`` named for a message: its table line, else its number."""
+    at = lines[k] if lines and k < len(lines) else None
+    return source + (f" line {at}" if isinstance(at, int) else f" {at}" if at else f" point {k + 1}")
+
+
+def _check_points(theta, r, source: str, lines=None, least: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """The points of a contour or an arc as float arrays, checked: at least ``least`` of them, finite,
+    theta [rad] strictly increasing, r [m] > 0; errors name the table line (``lines[k]``)."""
+    th, r = np.asarray(theta, dtype=float), np.asarray(r, dtype=float)
+    where = partial(_where, source, lines)
+    if th.ndim != 1 or th.shape != r.shape or len(th) < least:
+        raise _err("bad_contour", f"{source}: a contour needs at least {least} points (theta, r), got {th.size}",
+                   f"give the radius at {least} or more angles")
+    if not (np.all(np.isfinite(th)) and np.all(np.isfinite(r))):
+        k = int(np.flatnonzero(~(np.isfinite(th) & np.isfinite(r)))[0])
+        raise _err("bad_contour", f"{where(k)}: theta and r must be finite numbers", "fix the table")
+    steps = np.diff(th)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise _err("contour_not_increasing", f"{where(k)}: theta = {th[k]:.6g} rad does not increase "
+                   f"(previous {th[k - 1]:.6g} rad)", "list the points by increasing angle, one turn")
+    if np.any(r <= 0):
+        k = int(np.flatnonzero(r <= 0)[0])
+        raise _err("contour_negative_radius", f"{where(k)}: r = {r[k]:.6g} m at theta = {th[k]:.6g} rad "
+                   "must be > 0", "the contour must surround the roll's axis: every radius > 0")
+    return th, r
+
+
 @dataclass
 class Contour:
     """A convex closed contour r(theta) [m] in the roll frame, a periodic C2 cubic spline.
@@ -74,25 +104,8 @@ class Contour:
     spline: CubicSpline = field(init=False, repr=False)
 
     def __post_init__(self):
-        th, r = np.asarray(self.theta, dtype=float), np.asarray(self.r, dtype=float)
-        def where(k):
-            at = self.lines[k] if self.lines else None
-            return self.source + (f" line {at}" if isinstance(at, int) else f" {at}" if at else f" point {k + 1}")
-        if th.ndim != 1 or th.shape != r.shape or len(th) < 3:
-            raise _err("bad_contour", f"{self.source}: a contour needs at least 3 points (theta, r), got {len(th)}",
-                       "give the radius at three or more angles over one turn")
-        if not (np.all(np.isfinite(th)) and np.all(np.isfinite(r))):
-            k = int(np.flatnonzero(~(np.isfinite(th) & np.isfinite(r)))[0])
-            raise _err("bad_contour", f"{where(k)}: theta and r must be finite numbers", "fix the table")
-        steps = np.diff(th)
-        if np.any(steps <= 0):
-            k = int(np.flatnonzero(steps <= 0)[0]) + 1
-            raise _err("contour_not_increasing", f"{where(k)}: theta = {th[k]:.6g} rad does not increase "
-                       f"(previous {th[k - 1]:.6g} rad)", "list the points by increasing angle, one turn")
-        if np.any(r <= 0):
-            k = int(np.flatnonzero(r <= 0)[0])
-            raise _err("contour_negative_radius", f"{where(k)}: r = {r[k]:.6g} m at theta = {th[k]:.6g} rad "
-                       "must be > 0", "the contour must surround the roll's axis: every radius > 0")
+        th, r = _check_points(self.theta, self.r, self.source, self.lines)
+        where = partial(_where, self.source, self.lines)
         span = th[-1] - th[0]
         scale = max(1.0, abs(th[0]))
         if span > TWO_PI + 1e-12 * scale:
@@ -153,11 +166,10 @@ class Contour:
         local fit to the arc), plus the bulge that keeps the closing part furthest from a cusp or the
         axis; its convexity is checked like any contour's.  The arc's own points are kept; the closing
         part adds points at the arc's mean normal spacing."""
-        th, rr = np.asarray(theta, dtype=float), np.asarray(r, dtype=float)
-        if th.ndim != 1 or th.shape != rr.shape or len(th) < 4 or np.any(np.diff(th) <= 0) or np.any(rr <= 0) \
-                or th[-1] - th[0] >= TWO_PI:
-            raise _err("bad_contour", f"{source}: an arc needs at least 4 points, theta increasing over less than a "
-                       "turn and r > 0", "give the engaged arc as the synthesis wrote it")
+        th, rr = _check_points(theta, r, source, lines, least=4)
+        if th[-1] - th[0] >= TWO_PI:
+            raise _err("bad_contour", f"{source}: an arc spans less than a turn, this one "
+                       f"{th[-1] - th[0]:.6g} rad", "give the engaged arc as the synthesis wrote it")
         arc = CubicSpline(th, rr)
         d1, d2 = arc(th, 1), arc(th, 2)
         den = rr * rr + 2 * d1 * d1 - rr * d2
@@ -428,6 +440,22 @@ def read_table(path, arc: bool = False) -> Contour:
     number), then one ``theta, r`` row per point, by increasing theta over one turn; ``#`` starts a
     comment line.  ``arc``: the table is an engaged arc (a synthesis result), completed by
     :meth:`Contour.from_arc`.  Errors name the file and the line."""
+    theta, r, rows = _read_rows(path)
+    if arc:
+        return Contour.from_arc(theta, r, str(path), rows)
+    return Contour(theta, r, str(path), rows)
+
+
+def read_points(path) -> tuple[np.ndarray, np.ndarray]:
+    """The points ``(theta [rad], r [m])`` of a contour table as they stand (a closed contour or an
+    engaged arc, not completed, not interpolated), checked like :func:`read_table` checks them (at
+    least 4 finite rows, theta increasing, r > 0); errors name the file and the line."""
+    theta, r, rows = _read_rows(path)
+    return _check_points(theta, r, str(path), rows, least=4)
+
+
+def _read_rows(path) -> tuple[np.ndarray, np.ndarray, list]:
+    """The rows of a contour table (the format of :func:`read_table`) and their line numbers."""
     path = Path(path)
     name = str(path)
     try:
@@ -464,10 +492,7 @@ def read_table(path, arc: bool = False) -> Contour:
         lines.append(k)
         if len(theta) > MAX_ROWS:
             raise _err("bad_contour_table", f"{name}: more than {MAX_ROWS} rows", "a few thousand rows suffice")
-    rows = [n for n in lines if n is not None]
-    if arc:
-        return Contour.from_arc(np.array(theta), np.array(r), name, rows)
-    return Contour(np.array(theta), np.array(r), name, rows)
+    return np.array(theta), np.array(r), [n for n in lines if n is not None]
 
 
 def write_table(path, theta, r, comment: str = "") -> None:

@@ -32,7 +32,6 @@ Conventions (ours, where Ebert's printed ones contradict each other; see docs/be
 """
 from __future__ import annotations
 
-import csv
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -44,7 +43,7 @@ from scipy import interpolate, optimize
 
 from multipole import ModelError
 
-from .belt_contour import write_table
+from .belt_contour import read_points as read_contour_table, write_table   # the one table reader/writer
 
 __all__ = ["Transfer", "Trace", "DBSD", "DBBD", "DBDS", "DBDD", "attached_trace", "BandCurve", "band_curve",
            "evolute", "Finding",
@@ -533,25 +532,6 @@ def write_contour_table(path, contour: np.ndarray) -> tuple[np.ndarray, np.ndarr
     write_table(tmp, theta, r)          # the curve rolls' table format (elements/belt_contour.py)
     tmp.replace(path)
     return theta, r
-
-
-def read_contour_table(path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a ``theta [rad], r [m]`` table written by :func:`write_contour_table`."""
-    path = Path(path)
-    try:
-        with open(path, newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise ModelError("bad_table", f"{path}: cannot be read ({exc.strerror})", "give an existing table") from None
-    try:
-        data = np.array([[float(a), float(b)] for a, b in rows[1:]])
-    except (ValueError, TypeError):
-        raise ModelError("bad_table", f"{path}: rows after the header must be two numbers 'theta, r'",
-                         "write the table with write_contour_table") from None
-    if len(data) < 4 or np.any(np.diff(data[:, 0]) <= 0) or np.any(data[:, 1] <= 0):
-        raise ModelError("bad_table", f"{path}: theta must increase and r be > 0 (at least 4 rows)",
-                         "write the table with write_contour_table")
-    return data[:, 0], data[:, 1]
 
 
 def close_contour(curve: BandCurve, n_basis: int = 8) -> np.ndarray:

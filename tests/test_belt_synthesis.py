@@ -412,7 +412,11 @@ def test_contour_table_format_and_bad_tables(tmp_path):
     (tmp_path / "bad.csv").write_text("theta [rad],r [m]\n0.0,0.1\n0.1,x\n")
     with pytest.raises(MultipoleError) as exc:
         read_contour_table(tmp_path / "bad.csv")
-    assert exc.value.code == "bad_table" and "bad.csv" in str(exc.value)
+    assert exc.value.code == "bad_contour_table" and "bad.csv line 3" in str(exc.value)
+    (tmp_path / "nan.csv").write_text("theta [rad],r [m]\n0.0,0.1\n0.1,0.1\n0.2,nan\n0.3,0.1\n")
+    with pytest.raises(MultipoleError) as exc:   # the one reader (belt_contour's) refuses NaN, naming the line
+        read_contour_table(tmp_path / "nan.csv")
+    assert exc.value.code == "bad_contour" and "nan.csv line 4" in str(exc.value)
     with pytest.raises(MultipoleError) as exc:   # the pivot outside the contour: polar angle not monotonic
         write_contour_table(tmp_path / "u.csv", np.array([[1.0, 0.0], [1.0, 0.2], [1.0, 0.1], [1.1, 0.0]]))
     assert exc.value.code == "contour_not_polar"

@@ -57,18 +57,13 @@ def band(EA, cd, l, l0, dir, gamma):
     if dir not in (1, -1):
         raise ModelError("bad_direction", f"band: dir = {dir!r} must be +1 or -1",
                          "+1 if P2 lies in the positive direction of the global line from P1")
-    d, q, lr1, lr2 = int(dir), _S("delta"), _S("lr1"), _S("lr2")
+    d, lr1, lr2 = int(dir), _S("lr1"), _S("lr2")
     lx = _S("l0") + lr1 + lr2
-    f = _S("f")
     children = {
         # common tension: e_p1 = -d*F, e_p2 = +d*F, e_e1 = e_e2 = -F; flows sum: x carries delta'
         "J": junction_a(["p1", "p2", "e1", "e2", "x"], "translational", [-d, d, -1, -1, -1]),
         "K": junction_b(["x", "c", "r"], "translational"),
-        "c": C(law=_S("EA") / lx * sp.Max(q, 0), dom="translational", q0=_S("l") - _S("l0")),
-        # cd = 0: no damper law at all; its clamp would switch at the same root as the spring (q and
-        # EA q/l_x), and two switches crossing at one instant chatter at the slack onset
-        "r": R(law=0 if sp.sympify(cd).is_zero else sp.Heaviside(q) * sp.Max(-_S("EA") / lx * q, _S("cd") / lx * f),
-               dom="translational"),
+        **span_law(_S("EA") / lx, _S("cd") / lx, _S("l") - _S("l0"), damped=not sp.sympify(cd).is_zero),
         "g1": Sf(0, "rotational"), "g2": Sf(0, "rotational")}
     connections = [["J.x", "K.x"], ["K.c", "c.p"], ["K.r", "r.p"]]
     ports = {"e1.l": "J.e1", "e1.gamma": "g1.p", "e2.l": "J.e2", "e2.gamma": "g2.p", "p1": "J.p1", "p2": "J.p2"}
@@ -84,6 +79,20 @@ def band(EA, cd, l, l0, dir, gamma):
                    positions={"e1.gamma": _S("gamma"), "e2.gamma": _S("gamma")},
                    reads={"lr1": ("e1.l", 0), "lr2": ("e2.l", 0)},
                    fixed=("e1.l", "e2.l", "p1", "p2"))
+
+
+def span_law(k, b, q0, damped=True) -> dict:
+    """The tension-only Kelvin-Voigt law of a span, children ``c`` and ``r`` of its stretch junction.
+
+    ``c``: the spring, force ``k*max(delta, 0)`` [N] of its state ``delta`` [m] (the stretch, start
+    value ``q0``; the network names it as signal ``delta``); ``r``: the damper ``b*delta'`` while
+    ``delta > 0``, clamped so that the tension never turns compressive.  ``k`` [N/m], ``b`` [N*s/m]
+    are expressions of the network's local names.  ``damped=False`` (damping 0): no damper law at
+    all; its clamp would switch at the same root as the spring (q and k q), and two switches
+    crossing at one instant chatter at the slack onset."""
+    q, f = _S("delta"), _S("f")
+    return {"c": C(law=k * sp.Max(q, 0), dom="translational", q0=q0),
+            "r": R(law=sp.Heaviside(q) * sp.Max(-k * q, b * f) if damped else 0, dom="translational")}
 
 
 def _roll(kind: str, sides: int, r, J, phi0, omega0, w, mu, r_pin, wrap, contact=None, reads=None,

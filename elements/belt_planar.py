@@ -41,10 +41,10 @@ import math
 
 import sympy as sp
 
-from multipole import (MTF, C, Closure, Diagnostic, I, ModelError, Monitor, Network, Param, Quantity, R, Se, Sketch, Tap,
+from multipole import (MTF, Closure, Diagnostic, I, ModelError, Monitor, Network, Param, Quantity, R, Se, Sketch, Tap,
                        element, junction_a, junction_b, register_check)
 
-from .belt import _BAND, _roll
+from .belt import _BAND, _roll, span_law
 from .belt_checks import _value, band_graph
 from .linkage import _zero
 
@@ -112,7 +112,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
     c, s = sp.cos(g), sp.sin(g)
     lb = c * dx + s * dy                          # t . d: the span length on the tangent
     lb0, g0, _k1, _k2 = tangent(xa, ya, _S("r1"), _S("s1"), xb, yb, _S("r2"), _S("s2"))
-    q, f = _S("delta"), _S("f")
+    q = _S("delta")
     lx = lb - q
     children = {
         # a1: t . (v2 - v1), the stretch rate of the span seen from the centres; a2: gamma'
@@ -121,9 +121,7 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
         # common tension: e_s = F (the pull on the span along t), e_e1 = e_e2 = -F; x carries delta'
         "J": junction_a(["s", "e1", "e2", "x"], "translational", [1, -1, -1, -1]),
         "X": junction_b(["x", "c", "r"], "translational"),
-        "c": C(law=_S("EA") / lx * sp.Max(q, 0), dom="translational",
-               q0=_S("F0") * lb0 / (_S("EA") + _S("F0"))),
-        "r": R(law=sp.Heaviside(q) * sp.Max(-_S("EA") / lx * q, _S("cd") / lx * f), dom="translational"),
+        **span_law(_S("EA") / lx, _S("cd") / lx, _S("F0") * lb0 / (_S("EA") + _S("F0"))),
         # gamma' to both band ports (no torque) and its integral, the closure-bound inclination
         "G": junction_b(["k", "e1", "e2", "tap"], "rotational"),
         "tap": Tap("rotational", q0=g0),

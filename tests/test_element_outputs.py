@@ -564,6 +564,7 @@ CHECKED_IN = {**{k: ("test_linkage_dynamics.py", "test_linkage_slide.py", "test_
               **{k: ("test_belts.py",) for k in ("band", "band_roll", "drum")},
               "belt_pulley": ("test_belt_friction.py",),
               **{k: ("test_belt_planar.py",) for k in ("planar_band", "planar_roll", "planar_drum")},
+              **{k: ("test_belt_spans.py",) for k in ("nozzle_band", "spring_band")},
               **{k: ("test_belt_contour.py",) for k in ("curve_roll", "curve_drum")}}
 
 

@@ -967,6 +967,8 @@ def hand_model(scene) -> HandModel | None:
     :data:`HAND_MODELS`, or ``mass_spring_chain``, whose length is the number of masses in the
     scene); ``None`` if the scene names none or a key this module does not know."""
     key = (scene.reference or {}).get("hand_model")
+    if not isinstance(key, str) or (key != "mass_spring_chain" and key not in HAND_MODELS):
+        return None                  # another entry's scene (its parameters may be formulas)
     params = {k: float(v) for k, v in scene.network.params.items()}
     if key == "mass_spring_chain":
         return _chain_hand(params, sum(t == "mass" for t in scene.element_types.values()))

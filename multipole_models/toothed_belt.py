@@ -1,0 +1,136 @@
+"""Hand-written numpy model of the toothed belt with two non-circular wheels (Ebert 7.3.2,
+``diagrams/belts/toothed_belt.yaml``), the bench's reference for the generated code of that scene.
+
+Written from the physics in ``docs/belts.md`` ("Curve rolls", "Toothed belt with two non-circular
+wheels"), not from the generated code.  The wheels' contours enter only through the trigonometric
+series of their support functions (``Contour.series``: lever arm ``p(nu)`` and arc length ``S(nu)``),
+the same smooth form the elements use; everything else is written out here:
+
+* wheel k turned by ``phi_k`` [rad]; a span of inclination ``gamma`` leaving it at its port j with
+  contact side +1 touches the contour point of normal ``nu = gamma + pi/2 - phi_k``; the port's
+  winding sense is ``w_j`` = +1 at e1, -1 at e2 (``w = 1``);
+* material paid into the span at that end: ``w_j p(nu) omega_k`` [m/s]; wound length
+  ``w_j (S(nu0) - S(nu))`` [m]; the torque of the span's tension F on the wheel: ``+w_j p(nu) F``
+  (a span pulls material off the wheel: paid out under tension, the wheel is driven);
+* a span (EA [N], cd [N s], free length ``l0`` plus the wound lengths at both ends ``lx``): stretch
+  ``delta`` [m] with ``delta' = -(material paid in at both ends)``, tension-only Kelvin-Voigt force
+  ``F = EA/lx*max(delta, 0) + [delta > 0]*max(-EA/lx*delta, cd/lx*delta')`` (damping never makes
+  the span push);
+* wheel 1 is driven at the speed ``w`` (its angle is a state), wheel 2 (inertia J2) carries the
+  load torque ``-T``: ``p2' = -T + torques of both spans``.
+
+States (the kernel's names): ``wheel1.tap.q`` (phi1), ``wheel2.J.p`` (J2 omega2), ``wheel2.tap.q``
+(phi2), ``top.c.q``, ``bottom.c.q`` (stretches).  Registered as the ``belts`` entry of
+``multipole.hand_models`` for scenes with ``reference: {hand_model: toothed_belt}``.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from . import HandModel
+
+HALF_PI = math.pi / 2
+
+
+class _Series:
+    """p(nu) and S(nu) [m] of a contour from its support function's Fourier coefficients ``a``, ``b``
+    (p = a0 + sum a_k cos k nu + b_k sin k nu; S = a0 nu + sum a_k (1/k - k) sin k nu
+    + b_k (k - 1/k)(cos k nu - 1): dS/dnu = p + p'')."""
+
+    def __init__(self, a, b):
+        self.a, self.b = np.asarray(a, float), np.asarray(b, float)
+        self.k = np.arange(1, len(self.a), dtype=float)
+
+    def p(self, nu):
+        kn = np.multiply.outer(np.asarray(nu, float), self.k)
+        return self.a[0] + np.cos(kn) @ self.a[1:] + np.sin(kn) @ self.b[1:]
+
+    def dp(self, nu):
+        kn = np.multiply.outer(np.asarray(nu, float), self.k)
+        return np.cos(kn) @ (self.k * self.b[1:]) - np.sin(kn) @ (self.k * self.a[1:])
+
+    def S(self, nu):
+        nu = np.asarray(nu, float)
+        kn = np.multiply.outer(nu, self.k)
+        return (self.a[0] * nu + np.sin(kn) @ (self.a[1:] * (1 / self.k - self.k))
+                + (np.cos(kn) - 1) @ (self.b[1:] * (self.k - 1 / self.k)))
+
+
+def toothed_belt_hand(params: dict, folder: Path, tol: float = 1e-9) -> HandModel:
+    """The hand-written model of ``toothed_belt.yaml`` (parameters ``params`` of the scene, contour
+    tables in ``folder``; ``tol`` [m]: the series' tolerance, the elements' default)."""
+    from elements.belt_contour import read_table
+
+    def series(name):
+        return _Series(*read_table(str(folder / name)).series(tol))
+
+    c1, c2 = series("toothed_belt_wheel1.csv"), series("toothed_belt_wheel2.csv")
+    w, EA, cd, l, F0, T = (params[k] for k in ("w", "EA", "cd", "l", "F0", "T"))
+    dF = T / (2 * 0.1664)
+    J2 = 0.05
+    omega20 = w / (2 / math.sqrt(1 - 0.2 ** 2) * 1.2)
+    l0_top, l0_bot = l / (1 + (F0 + dF) / EA), l / (1 + (F0 - dF) / EA)
+    g_top, g_bot = 0.0, math.pi
+    # (wheel series, span gamma, winding sense of the port): wheel1.e1-bottom.e2, wheel1.e2-top.e1,
+    # wheel2.e1-top.e2, wheel2.e2-bottom.e1
+    n1b, n1t = g_bot + HALF_PI, g_top + HALF_PI          # nu at phi = 0
+
+    def ends(phi1, phi2):
+        """Lever arms [m] and wound lengths [m] of the four span ends."""
+        p1b, p1t = c1.p(n1b - phi1), c1.p(n1t - phi1)
+        p2t, p2b = c2.p(n1t - phi2), c2.p(n1b - phi2)
+        l1b = +(c1.S(n1b) - c1.S(n1b - phi1))
+        l1t = -(c1.S(n1t) - c1.S(n1t - phi1))
+        l2t = +(c2.S(n1t) - c2.S(n1t - phi2))
+        l2b = -(c2.S(n1b) - c2.S(n1b - phi2))
+        return p1b, p1t, p2t, p2b, l1b, l1t, l2t, l2b
+
+    def force(delta, rate, lx):
+        k, b = EA / lx, cd / lx
+        return k * np.maximum(delta, 0) + (delta > 0) * np.maximum(-k * delta, b * rate)
+
+    def parts(x):
+        phi1, p2, phi2, dt, db = x
+        om2 = p2 / J2
+        p1b, p1t, p2t, p2b, l1b, l1t, l2t, l2b = ends(phi1, phi2)
+        rate_t = -(-p1t * w + p2t * om2)                 # top: wheel1.e2 (w = -1), wheel2.e1 (w = +1)
+        rate_b = -(p1b * w - p2b * om2)                  # bottom: wheel1.e1 (+1), wheel2.e2 (-1)
+        Ft = force(dt, rate_t, l0_top + l1t + l2t)
+        Fb = force(db, rate_b, l0_bot + l1b + l2b)
+        return om2, rate_t, rate_b, Ft, Fb, p2t, p2b, p1t, p1b
+
+    def rhs(t, x):
+        om2, rate_t, rate_b, Ft, Fb, p2t, p2b, _, _ = parts(x)
+        return np.array([w, -T + p2t * Ft - p2b * Fb, om2, rate_t, rate_b])
+
+    def out_F(which):
+        def g(t, X):
+            return np.array([parts(X[:, i])[3 + which] for i in range(X.shape[1])])
+        return g
+
+    x0 = np.array([0.0, J2 * omega20, 0.0, l - l0_top, l - l0_bot])
+    return HandModel("toothed_belt", ["wheel1.tap.q", "wheel2.J.p", "wheel2.tap.q", "top.c.q", "bottom.c.q"],
+                     x0, rhs, None,
+                     {"wheel1.phi": lambda t, X: X[0], "wheel2.phi": lambda t, X: X[2],
+                      "wheel1.omega": lambda t, X: np.full(X.shape[1], w), "wheel2.omega": lambda t, X: X[1] / J2,
+                      "top.F": out_F(0), "bottom.F": out_F(1)})
+
+
+def hand_model(scene) -> HandModel | None:
+    """The toothed-belt hand model for a scene naming ``reference: {hand_model: toothed_belt}`` (its
+    contour tables beside the scene file), else ``None``."""
+    if (scene.reference or {}).get("hand_model") != "toothed_belt" or not scene.path:
+        return None
+    params = {k: float(v) for k, v in scene.network.params.items() if _is_number(v)}
+    return toothed_belt_hand(params, Path(scene.path).parent)
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False

@@ -37,12 +37,14 @@ from __future__ import annotations
 import csv
 import math
 import os
+import warnings
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 import sympy as sp
+from scipy import optimize
 from scipy.interpolate import CubicSpline
 
 from multipole import Diagnostic, ModelError, Param, Quantity, element, register_check
@@ -102,6 +104,7 @@ class Contour:
     source: str = "contour"
     lines: list | None = None              #: table line of each point (for messages)
     spline: CubicSpline = field(init=False, repr=False)
+    joins: str = field(init=False, default="")   #: "C4"/"C2": how :meth:`from_arc` joined its closing part
 
     def __post_init__(self):
         th, r = _check_points(self.theta, self.r, self.source, self.lines)
@@ -162,10 +165,9 @@ class Contour:
     def from_arc(cls, theta, r, source: str = "arc", lines=None) -> "Contour":
         """A closed contour from an engaged arc (a synthesis result: theta [rad] increasing over less
         than a turn, r [m]): the arc's support function is continued over the normals it does not
-        cover by the polynomial that matches p and its first four derivatives at both ends (from a
-        local fit to the arc), plus the bulge that keeps the closing part furthest from a cusp or the
-        axis; its convexity is checked like any contour's.  The arc's own points are kept; the closing
-        part adds points at the arc's mean normal spacing."""
+        cover by :func:`close_arc` (C4 joins, else C2 joins with a :class:`ClosureWarning`; ``joins``
+        says which); its convexity is checked like any contour's.  The arc's own points are kept; the
+        closing part adds points at the arc's mean normal spacing."""
         th, rr = _check_points(theta, r, source, lines, least=4)
         if th[-1] - th[0] >= TWO_PI:
             raise _err("bad_contour", f"{source}: an arc spans less than a turn, this one "
@@ -181,61 +183,14 @@ class Contour:
         ps = rr * np.cos(th - nus)
         na, nb = float(nus[0]), float(nus[-1])
         gap = na + TWO_PI - nb
-        if gap <= 0:
-            raise _err("contour_not_closed", f"{source}: the arc's normals turn by more than a turn",
-                       "give one arc of a convex contour")
-        # p and its first ORDER derivatives at both ends, from a degree-6 fit to the arc's last points
-        # (C4 joins: the series the elements use then needs far fewer harmonics than with C2 joins)
-        order, m = 4, max(8, min(40, len(th) // 4))
-
-        def derivs(x, y, at):
-            fit = np.polynomial.Polynomial.fit(x - at, y, min(6, len(x) - 1)).convert()
-            return [float(fit.deriv(i)(0.0)) if i else float(fit(0.0)) for i in range(order + 1)]
-
-        Db, Da = derivs(nus[-m:], ps[-m:], nb), derivs(nus[:m], ps[:m], na)
-        # Hermite polynomial in s = (nu - nb)/gap on [0, 1] matching them at s = 0 (nb) and s = 1 (na + 2 pi)
-        deg = 2 * order + 1
-        rows, rhs = [], []
-        for at, D in ((0.0, Db), (1.0, Da)):
-            for i in range(order + 1):
-                rows.append([math.perm(j, i) * at ** (j - i) if j >= i else 0.0 for j in range(deg + 1)])
-                rhs.append(D[i] * gap ** i)
-        basis = np.linalg.solve(np.array(rows), np.array(rhs))
-        pa, pb = Da[0], Db[0]
         n = max(64, int(math.ceil(gap / ((nb - na) / (len(th) - 1)))))
-        sg = np.linspace(0.0, 1.0, n + 1)[1:-1]
-
-        # plus (c0 + c1 (s - 1/2)) s^5 (1 - s)^5 (no change at the ends): the bulge that keeps p and the
-        # radius of curvature p + p'' furthest from 0 over the closing part
-        P = np.polynomial.polynomial
-        bump = P.polypow([0, 1, -1], order + 1)                           # s^5 (1 - s)^5, low order first
-        tilt = P.polymul(bump, [-0.5, 1])
-
-        def closing(c0, c1, at):
-            coef = P.polyadd(P.polyadd(basis, c0 * bump), c1 * tilt)
-            return (P.polyval(at, coef), P.polyval(at, P.polyder(coef)) / gap,
-                    P.polyval(at, P.polyder(coef, 2)) / gap ** 2)
-
-        def margin(c, at):
-            p, _, ddp = closing(*c, at)
-            return min(np.min(p), np.min(p + ddp))
-
-        coarse, scale = np.linspace(0.0, 1.0, 201)[1:-1], 4 ** (order + 1) * max(pa, pb)
-        grid = [(c0 * scale, c1 * scale) for c0 in np.linspace(-1.0, 4.0, 41) for c1 in np.linspace(-8.0, 8.0, 41)]
-        p, dp, ddp = closing(*max(grid, key=lambda c: margin(c, coarse)), sg)
-        # convex, and clear of the axis (a contour through the axis has no polar form)
-        bad = np.flatnonzero((p + ddp <= 0) | (p <= 0.1 * rr.min()))
-        if len(bad):
-            k = bad[np.argmin(np.minimum(p[bad] + ddp[bad], p[bad]))]
-            raise _err("contour_not_closed", f"{source}: the closing part the arc's ends call for is not convex "
-                       f"or passes the axis closer than a tenth of the arc's smallest radius (at the normal angle "
-                       f"{float(nb + sg[k] * gap):.4g} rad: distance p = {p[k]:.4g} m, radius of curvature "
-                       f"{p[k] + ddp[k]:.4g} m)",
-                       "synthesise a longer arc, or close the contour by hand (a whole turn in the table)")
-        tg, rg = polar_from_support(p, dp, nb + sg * gap)
+        closing = close_arc(nus, ps, n, source)
+        tg, rg = polar_from_support(closing.p, closing.dp, closing.nu)
         tg = th[-1] + np.mod(tg - th[-1], TWO_PI)                    # after the arc's last angle
-        return cls(np.concatenate([th, tg]), np.concatenate([rr, rg]), source,
-                   None if lines is None else list(lines) + [f"closing point {k + 1}" for k in range(len(tg))])
+        c = cls(np.concatenate([th, tg]), np.concatenate([rr, rg]), source,
+                None if lines is None else list(lines) + [f"closing point {k + 1}" for k in range(len(tg))])
+        c.joins = closing.joins
+        return c
 
     # -- evaluation ------------------------------------------------------------------------------
     def radius(self, theta, nu: int = 0):
@@ -424,6 +379,112 @@ def _sym_series(a, b, nu, arc: bool, drop: float):
         if abs(sk) > drop:
             out += sp.Float(sk) * ((sp.cos(k * nu) - 1) if arc else sp.sin(k * nu))
     return out
+
+
+class ClosureWarning(UserWarning):
+    """An engaged arc was closed with C2 joins because the C4 closing part is not convex."""
+
+
+@dataclass
+class Closing:
+    """The closing part of an engaged arc (:func:`close_arc`): normal angles ``nu`` [rad] (after the
+    arc's last normal, before its first + 2 pi), support function ``p`` [m] and ``dp`` = p' [m/rad],
+    and ``joins``: "C4" or "C2", the order to which p matches the arc at both ends."""
+
+    nu: np.ndarray
+    p: np.ndarray
+    dp: np.ndarray
+    joins: str
+
+
+def _end_derivatives(x, y, at, order):
+    """p and its first ``order`` derivatives at ``at`` from a degree-6 least-squares fit to the arc's
+    points next to that end."""
+    fit = np.polynomial.Polynomial.fit(x - at, y, min(6, len(x) - 1)).convert()
+    return [float(fit.deriv(i)(0.0)) if i else float(fit(0.0)) for i in range(order + 1)]
+
+
+def close_arc(nu, p, n: int, source: str = "arc", n_basis: int = 8) -> Closing:
+    """The one closure of an engaged arc (used by ``arc: true`` tables and by the synthesis'
+    ``close_contour``).  ``nu`` [rad]: the outward normal angles of the arc's points, increasing over
+    less than a turn; ``p`` [m]: its support function there.  Over the ``n - 1`` normals of the gap
+    (nu[-1], nu[0] + 2 pi) the support function is continued
+
+    1. with C4 joins: the degree-9 polynomial matching p and its first four derivatives at both ends
+       (from a degree-6 fit to the arc's last points) plus the bulge (c0 + c1 (s - 1/2)) s^5 (1 - s)^5
+       that keeps p and the radius of curvature p + p'' furthest from 0.  Smooth joins let the
+       elements' series get by with few harmonics.  Accepted when p + p'' > 0 and p > a tenth of the
+       arc's smallest p;
+    2. else with C2 joins, reported by a :class:`ClosureWarning` (never silently): the quintic
+       matching p, p', p'' at both ends plus the smallest combination of ``n_basis`` bumps
+       s^3 (1 - s)^3 s^j (a linear programme) with p and p + p'' >= half the smaller end value of p.
+       It closes arcs whose C4 part would bulge through a cusp, at the price of more harmonics.
+
+    Neither exists: ``ModelError`` ``contour_not_closed`` naming ``source``."""
+    nu, p = np.asarray(nu, dtype=float), np.asarray(p, dtype=float)
+    na, nb = float(nu[0]), float(nu[-1])
+    gap = na + TWO_PI - nb
+    if len(nu) < 4 or np.any(np.diff(nu) <= 0) or not gap > 0:
+        raise _err("contour_not_closed", f"{source}: the arc's normals do not turn monotonically through less "
+                   "than a full turn", "give one arc of a convex contour")
+    m = max(8, min(40, len(nu) // 4))
+    Db, Da = _end_derivatives(nu[-m:], p[-m:], nb, 4), _end_derivatives(nu[:m], p[:m], na, 4)
+    sg = np.linspace(0.0, 1.0, n + 1)[1:-1]
+    P = np.polynomial.polynomial
+
+    def hermite(order):          # coefficients in s = (nu - nb)/gap matching Db at s = 0, Da at s = 1
+        deg = 2 * order + 1
+        rows, rhs = [], []
+        for at, D in ((0.0, Db), (1.0, Da)):
+            for i in range(order + 1):
+                rows.append([math.perm(j, i) * at ** (j - i) if j >= i else 0.0 for j in range(deg + 1)])
+                rhs.append(D[i] * gap ** i)
+        return np.linalg.solve(np.array(rows), np.array(rhs))
+
+    def values(coef, at):        # p, p', p'' [m, m/rad, m/rad^2]
+        return (P.polyval(at, coef), P.polyval(at, P.polyder(coef)) / gap,
+                P.polyval(at, P.polyder(coef, 2)) / gap ** 2)
+
+    # 1. C4 joins and the best bulge over a coarse grid of (c0, c1)
+    base, bump = hermite(4), P.polypow([0, 1, -1], 5)                  # s^5 (1 - s)^5, low order first
+    tilt = P.polymul(bump, [-0.5, 1])
+
+    def coef4(c0, c1):
+        return P.polyadd(P.polyadd(base, c0 * bump), c1 * tilt)
+
+    def margin(c, at):
+        q, _, ddq = values(coef4(*c), at)
+        return min(np.min(q), np.min(q + ddq))
+
+    coarse, scale = np.linspace(0.0, 1.0, 201)[1:-1], 4 ** 5 * max(Da[0], Db[0])
+    grid = [(c0 * scale, c1 * scale) for c0 in np.linspace(-1.0, 4.0, 41) for c1 in np.linspace(-8.0, 8.0, 41)]
+    q, dq, ddq = values(coef4(*max(grid, key=lambda c: margin(c, coarse))), sg)
+    bad = np.flatnonzero((q + ddq <= 0) | (q <= 0.1 * p.min()))
+    if not len(bad):
+        return Closing(nb + sg * gap, q, dq, "C4")
+    k = bad[np.argmin(np.minimum(q[bad] + ddq[bad], q[bad]))]
+    why = (f"at the normal angle {float(nb + sg[k] * gap):.4g} rad: distance p = {q[k]:.4g} m, radius of "
+           f"curvature {q[k] + ddq[k]:.4g} m")
+    # 2. C2 joins plus the smallest bumps (a linear programme)
+    base2 = hermite(2)
+    polys = [64 * np.polynomial.Polynomial([0, 0, 0, 1, -3, 3, -1]) * np.polynomial.Polynomial.basis(j)
+             for j in range(n_basis)]                                   # 64 s^3 (1 - s)^3 s^j
+    Bv = np.array([b(sg) for b in polys])
+    Bd = np.array([b.deriv(1)(sg) / gap for b in polys])
+    Bpp = np.array([b.deriv(2)(sg) / gap ** 2 for b in polys])
+    q0, dq0, ddq0 = values(base2, sg)
+    eps = 0.5 * min(Da[0], Db[0])                                       # the margin asked of p and p + p''
+    A = np.vstack([np.c_[-Bv.T, Bv.T], np.c_[-(Bv + Bpp).T, (Bv + Bpp).T]])
+    res = optimize.linprog(np.ones(2 * n_basis), A_ub=A, b_ub=np.r_[q0 - eps, q0 + ddq0 - eps],
+                           bounds=[(0, None)] * (2 * n_basis), method="highs")
+    if not res.success:
+        raise _err("contour_not_closed", f"{source}: no convex closing part around the axis matches the arc's "
+                   f"ends, neither with C4 joins ({why}) nor with C2 joins",
+                   "synthesise a longer arc, or close the contour by hand (a whole turn in the table)")
+    lam = res.x[:n_basis] - res.x[n_basis:]
+    warnings.warn(f"{source}: the C4 closing part is not convex or passes the axis ({why}); closed with C2 joins "
+                  "(the series needs more harmonics)", ClosureWarning, stacklevel=3)
+    return Closing(nb + sg * gap, q0 + lam @ Bv, dq0 + lam @ Bd, "C2")
 
 
 def polar_from_support(p, dp, nu):

@@ -43,7 +43,7 @@ from scipy import interpolate, optimize
 
 from multipole import ModelError
 
-from .belt_contour import read_points as read_contour_table, write_table   # the one table reader/writer
+from .belt_contour import close_arc, read_points as read_contour_table, write_table   # the one table reader/writer
 
 __all__ = ["Transfer", "Trace", "DBSD", "DBBD", "DBDS", "DBDD", "attached_trace", "BandCurve", "band_curve",
            "evolute", "Finding",
@@ -534,15 +534,13 @@ def write_contour_table(path, contour: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return theta, r
 
 
-def close_contour(curve: BandCurve, n_basis: int = 8) -> np.ndarray:
+def close_contour(curve: BandCurve) -> np.ndarray:
     """The synthesised arc completed to a closed convex contour (cam frame, shape (n, 2) [m]), so a
     ``curve_roll``/``curve_drum`` can carry it.  The arc's support function p(nu) (the distance of
-    the band line from the pivot over the direction nu of its outward normal) is continued over the
-    normal directions the band never touches by the quintic that matches p, p' and p'' at both ends
-    (C2) plus the smallest combination of ``n_basis`` bumps s^3 (1 - s)^3 s^j (zero to the second
-    derivative at both ends) that keeps p and p + p'' above half the smaller end value of p (a
-    linear programme): the fill surrounds the pivot (p > 0) and is convex (p + p'' > 0), else
-    ``contour_not_closable``.
+    the band line from the pivot over the direction nu of its outward normal, exact from the trace)
+    is continued over the normal directions the band never touches by ``belt_contour.close_arc``,
+    the one arc closure (C4 joins, else C2 joins with a ``ClosureWarning``; else
+    ``contour_not_closed``) that ``arc: true`` tables use too.
     The band only ever touches the arc, so the fill's shape does not enter the motion."""
     tr = curve.trace
     f = np.einsum("nij,nj->ni", _rot(-tr.cam), tr.foot - tr.pivot)
@@ -551,33 +549,10 @@ def close_contour(curve: BandCurve, n_basis: int = 8) -> np.ndarray:
     if nu[-1] < nu[0]:
         nu, p, c = nu[::-1], p[::-1], c[::-1]
     gap = nu[0] + 2 * math.pi - nu[-1]
-    if np.any(np.diff(nu) <= 0) or not gap > 0:
-        raise ModelError("contour_not_closable", "the band's normal direction does not turn monotonically through "
-                         "less than a full turn over the motion", "assess the contour first")
-    dp = np.gradient(p, nu, edge_order=2)
-    ddp = np.gradient(dp, nu, edge_order=2)
-    hermite = interpolate.BPoly.from_derivatives([nu[-1], nu[0] + 2 * math.pi],
-                                                 [[p[-1], dp[-1], ddp[-1]], [p[0], dp[0], ddp[0]]])
     m = max(8, int(math.ceil(gap / float(np.median(np.diff(nu))))))
-    t = np.linspace(nu[-1], nu[0] + 2 * math.pi, m + 1)[1:-1]
-    x = np.linspace(0.0, 1.0, m + 1)[1:-1]
-    polys = [64 * np.polynomial.Polynomial([0, 0, 0, 1, -3, 3, -1]) * np.polynomial.Polynomial.basis(j)
-             for j in range(n_basis)]                       # 64 s^3 (1 - s)^3 s^j
-    Bv = np.array([q(x) for q in polys])                     # values over the fill
-    Bpp = np.array([q.deriv(2)(x) / gap ** 2 for q in polys])
-    p0, rho0 = hermite(t), hermite(t) + hermite(t, 2)
-    eps = 0.5 * min(p[0], p[-1])                             # the margin asked of p and p + p''
-    # the smallest bumps sum |l_j| (l = u - v) with p0 + B.l >= eps and rho0 + (B + B'').l >= eps
-    A = np.vstack([np.c_[-Bv.T, Bv.T], np.c_[-(Bv + Bpp).T, (Bv + Bpp).T]])
-    res = optimize.linprog(np.ones(2 * n_basis), A_ub=A, b_ub=np.r_[p0 - eps, rho0 - eps],
-                           bounds=[(0, None)] * (2 * n_basis), method="highs")
-    if not res.success:
-        raise ModelError("contour_not_closable", "no convex closing part around the pivot matches the synthesised "
-                         "arc's ends (C2)", "synthesise over a wider range of the motion or change the pivots")
-    lam = res.x[:n_basis] - res.x[n_basis:]
-    pf = p0 + lam @ Bv
-    dpf = hermite(t, 1) + lam @ np.array([q.deriv(1)(x) / gap for q in polys])
-    cf = np.stack([pf * np.cos(t) - dpf * np.sin(t), pf * np.sin(t) + dpf * np.cos(t)], -1)
+    fill = close_arc(nu, p, m, "synthesised arc")
+    cf = np.stack([fill.p * np.cos(fill.nu) - fill.dp * np.sin(fill.nu),
+                   fill.p * np.sin(fill.nu) + fill.dp * np.cos(fill.nu)], -1)
     return np.concatenate([c, cf])
 
 

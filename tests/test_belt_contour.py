@@ -412,6 +412,22 @@ def test_an_engaged_arc_is_completed_without_changing_the_arc():
     with pytest.raises(ModelError) as exc:              # an arc whose ends cannot be joined convexly
         Contour.from_arc(th, 0.05 + 0.2 * (th - 0.3) ** 2, "spiral")
     assert exc.value.code in ("contour_not_closed", "contour_not_convex")
+    assert c.joins == "C4"                              # a C4 join exists here: no fallback taken
+
+
+def test_one_arc_closure_falls_back_to_c2_joins_and_says_so():
+    """The cabinet door's engaged arc (diagrams/belts/cabinet_door_contour.csv, Ebert 7.2.1): its C4
+    closing part would pass the axis, so ``arc: true`` closes it with C2 joins and warns
+    (ClosureWarning), never silently.  The closed contour keeps the arc's points unchanged, is
+    convex (curvature > 0 everywhere) and stays clear of the axis."""
+    from elements.belt_contour import ClosureWarning, read_points
+    path = Path(__file__).resolve().parents[1] / "diagrams" / "belts" / "cabinet_door_contour.csv"
+    th, r = read_points(path)
+    with pytest.warns(ClosureWarning, match="C2 joins"):
+        c = read_table(path, arc=True)
+    assert c.joins == "C2" and c.kappa_min > 0
+    assert np.array_equal(c.theta[:len(th)], th) and np.array_equal(c.r[:len(th)], r)
+    assert np.all(c.radius(th) > 0) and np.min(c.r) > 0.1 * np.min(r)
 
 
 def test_transfer_function_round_trip_through_an_engaged_arc(tmp_path):

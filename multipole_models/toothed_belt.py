@@ -20,7 +20,8 @@ the same smooth form the elements use; everything else is written out here:
   load torque ``-T``: ``p2' = -T + torques of both spans``.
 
 States (the kernel's names): ``wheel1.tap.q`` (phi1), ``wheel2.J.p`` (J2 omega2), ``wheel2.tap.q``
-(phi2), ``top.c.q``, ``bottom.c.q`` (stretches).  Registered as the ``belts`` entry of
+(phi2), ``top.c.q``, ``bottom.c.q`` (stretches).  The Jacobian is written out too (``jac``: taut spans whose
+damping does not clip, else a span's force and its derivatives are 0).  Registered as the ``belts`` entry of
 ``multipole.hand_models`` for scenes with ``reference: {hand_model: toothed_belt}``.
 """
 from __future__ import annotations
@@ -51,6 +52,10 @@ class _Series:
     def dp(self, nu):
         kn = np.multiply.outer(np.asarray(nu, float), self.k)
         return np.cos(kn) @ (self.k * self.b[1:]) - np.sin(kn) @ (self.k * self.a[1:])
+
+    def d2p(self, nu):
+        kn = np.multiply.outer(np.asarray(nu, float), self.k)
+        return -(np.cos(kn) @ (self.k ** 2 * self.a[1:]) + np.sin(kn) @ (self.k ** 2 * self.b[1:]))
 
     def S(self, nu):
         nu = np.asarray(nu, float)
@@ -106,6 +111,31 @@ def toothed_belt_hand(params: dict, folder: Path, tol: float = 1e-9) -> HandMode
         om2, rate_t, rate_b, Ft, Fb, p2t, p2b, _, _ = parts(x)
         return np.array([w, -T + p2t * Ft - p2b * Fb, om2, rate_t, rate_b])
 
+    def jac(t, x):
+        """Analytic Jacobian of :func:`rhs` (d(nu)/d(phi) = -1, dS/dnu = p + p'')."""
+        phi1, p2, phi2, dt, db = x
+        om2, rate_t, rate_b, Ft, Fb, p2t, p2b, p1t, p1b = parts(x)
+        a1t, a1b, a2t, a2b = n1t - phi1, n1b - phi1, n1t - phi2, n1b - phi2
+        # gradients over (phi1, p2, phi2, dt, db)
+        g_rt = np.array([-c1.dp(a1t) * w, -p2t / J2, c2.dp(a2t) * om2, 0.0, 0.0])
+        g_rb = np.array([c1.dp(a1b) * w, p2b / J2, -c2.dp(a2b) * om2, 0.0, 0.0])
+        g_lt = np.array([-(c1.p(a1t) + c1.d2p(a1t)), 0.0, c2.p(a2t) + c2.d2p(a2t), 0.0, 0.0])
+        g_lb = np.array([c1.p(a1b) + c1.d2p(a1b), 0.0, -(c2.p(a2b) + c2.d2p(a2b)), 0.0, 0.0])
+        l1b, l1t, l2t, l2b = ends(phi1, phi2)[4:]
+
+        def g_force(delta, rate, lx, k_delta, g_rate, g_lx, F):
+            if not (delta > 0 and cd * rate > -EA * delta):     # slack, or damping would push: F = 0
+                return np.zeros(5)
+            g_delta = np.zeros(5)
+            g_delta[k_delta] = 1.0
+            return (EA * g_delta + cd * g_rate) / lx - F / lx * g_lx
+
+        g_Ft = g_force(dt, rate_t, l0_top + l1t + l2t, 3, g_rt, g_lt, Ft)
+        g_Fb = g_force(db, rate_b, l0_bot + l1b + l2b, 4, g_rb, g_lb, Fb)
+        row1 = p2t * g_Ft - p2b * g_Fb
+        row1[2] += -c2.dp(a2t) * Ft + c2.dp(a2b) * Fb
+        return np.array([np.zeros(5), row1, [0.0, 1 / J2, 0.0, 0.0, 0.0], g_rt, g_rb])
+
     def out_F(which):
         def g(t, X):
             return np.array([parts(X[:, i])[3 + which] for i in range(X.shape[1])])
@@ -113,7 +143,7 @@ def toothed_belt_hand(params: dict, folder: Path, tol: float = 1e-9) -> HandMode
 
     x0 = np.array([0.0, J2 * omega20, 0.0, l - l0_top, l - l0_bot])
     return HandModel("toothed_belt", ["wheel1.tap.q", "wheel2.J.p", "wheel2.tap.q", "top.c.q", "bottom.c.q"],
-                     x0, rhs, None,
+                     x0, rhs, jac,
                      {"wheel1.phi": lambda t, X: X[0], "wheel2.phi": lambda t, X: X[2],
                       "wheel1.omega": lambda t, X: np.full(X.shape[1], w), "wheel2.omega": lambda t, X: X[1] / J2,
                       "top.F": out_F(0), "bottom.F": out_F(1)})

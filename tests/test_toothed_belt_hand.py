@@ -61,3 +61,34 @@ def test_outputs_of_a_run_agree(pair):
     for name in ("wheel2.omega", "top.F"):
         own, gen = hand.outputs[name](sol.t, sol.y), np.asarray(res[name])
         assert np.max(np.abs(own - gen)) <= 1e-7 * np.max(np.abs(gen)), name
+
+
+def test_jacobian_equals_generated_and_differences(pair):
+    """The hand-written analytic Jacobian against the generated one (to round-off) and against
+    central differences of the hand right-hand side (step 1e-6 of each state's scale: truncation
+    O(h^2) and round-off O(eps/h) both below 1e-6 of the entries' scale), the latter at the states
+    where each span's law stays on one branch (taut or slack) across the differences."""
+    scene, model, hand = pair
+    idx = hand.permutation(model.state_names)
+    rng = np.random.default_rng(2)
+    scale = np.array([10.0, 0.1, 10.0, 2e-3, 2e-3])
+    checked = 0
+    for _ in range(60):
+        x = model.x0 + scale * 10.0 ** rng.uniform(-4, 0, 5) * rng.normal(size=5)
+        t = float(rng.uniform(0.0, 2.0))
+        gen, own = model.jac(t, x)[np.ix_(idx, idx)], np.asarray(hand.jac(t, x[idx]))
+        np.testing.assert_allclose(own, gen, rtol=1e-8, atol=1e-10 * np.max(np.abs(gen)))
+        xh = x[idx]
+        h = 1e-6 * np.maximum(np.abs(xh), np.array([1.0, 0.1, 1.0, 1e-3, 1e-3]))
+        fd, same_branch = np.empty((5, 5)), True
+        for j in range(5):
+            e = np.zeros(5)
+            e[j] = h[j]
+            X = np.stack([xh + e, xh - e], axis=1)
+            for out in ("top.F", "bottom.F"):      # a span's law on one branch on both sides
+                same_branch &= bool(np.all(hand.outputs[out](t, X) > 0) or np.all(hand.outputs[out](t, X) == 0))
+            fd[:, j] = (hand.rhs(t, xh + e) - hand.rhs(t, xh - e)) / (2 * h[j])
+        if same_branch:
+            checked += 1
+            np.testing.assert_allclose(fd, own, rtol=1e-5, atol=1e-6 * np.max(np.abs(own)))
+    assert checked >= 30

@@ -281,6 +281,28 @@ class _Printer(PythonCodePrinter):
 _TRIG_CALL = re.compile(r"math\.(sin|cos)\(([A-Za-z_]\w*)\)")
 
 
+_ASSIGNED = re.compile(r"    ([A-Za-z_]\w*) = ")
+_WORD = re.compile(r"[A-Za-z_]\w*")
+
+
+def _live(body: list) -> list:
+    """``body`` (the lines of one generated function, straight-line code, each name assigned once)
+    without the top-level assignments ``name = ...`` of a name no other line reads (a constant
+    folded into every use, a value this function does not return); a loop's solve is kept."""
+    count: dict = {}
+    for line in body:
+        for w in _WORD.findall(line):
+            count[w] = count.get(w, 0) + 1
+    keep = [True] * len(body)
+    for i in range(len(body) - 1, -1, -1):           # last first: a dropped line frees what it read
+        m = _ASSIGNED.match(body[i])
+        if m and count[m.group(1)] == 1 and "newton(" not in body[i]:
+            keep[i] = False
+            for w in _WORD.findall(body[i]):
+                count[w] -= 1
+    return [line for line, k in zip(body, keep) if k]
+
+
 def _ident(name: str, taken: set) -> str:
     base = re.sub(r"\W", "_", name).strip("_") or "v"
     if base[0].isdigit():
@@ -610,6 +632,23 @@ class _Writer:
         self._lines: dict = {}
         self._folded: dict = {}
         self.values = {p: float(v) for p, v in eq.params.items() if p not in self.runtime}
+        self._constants()
+
+    def _constants(self) -> None:
+        """Inputs and computed variables whose value is a number (a constant source, a port held at
+        zero, their negatives, ...) join the parameters in ``pvals``/``values``: every expression is
+        printed with the number, so the terms they zero vanish and their assignments are dead code
+        (:meth:`function` drops them)."""
+        for u, e in self.eq.inputs.items():
+            self._constant(u, e)
+        for unit in self.units:
+            if unit.kind == "assign":
+                self._constant(unit.variables[0], unit.exprs[0])
+
+    def _constant(self, v, e) -> None:
+        value = sp.sympify(e).xreplace(self.pvals)
+        if value.is_number and value.is_finite and value.is_real:
+            self.pvals[v], self.values[v] = sp.Float(value), float(value)
 
     def locked(self, modes: dict | None):
         """Print in fixed switching modes (``modes``: switching function → index) or, with None, as
@@ -874,7 +913,7 @@ class _Writer:
     def function(self, name, doc, needed, ret, extra=()) -> list:
         units = _closure(self.units, needed)
         return [f"def {name}(t, x):", f'    """{doc}"""'] + list(extra) + \
-            self.shared_trig(self.prologue(units, needed) + [f"    return {ret}"]) + [""]
+            _live(self.shared_trig(self.prologue(units, needed) + [f"    return {ret}"])) + [""]
 
     def shared_trig(self, body: list) -> list:
         """``body`` (the lines of one Python function) with every ``math.sin(v)`` and ``math.cos(v)`` of
@@ -949,9 +988,10 @@ class _Writer:
             return self._sparse_jacobian(name, plan)
         out = [f"def {name}(t, x):", '    """Jacobian d(rhs)/dx."""', "    _stats['jac_calls'] += 1"]
         n = len(self.states)
-        out += self.shared_trig(self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
-                                + [f"    _J = np.zeros(({n}, {n}))"] + [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries])
-        return out + ["    return _J", ""]
+        out += _live(self.shared_trig(self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
+                                      + [f"    _J = np.zeros(({n}, {n}))"]
+                                      + [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries] + ["    return _J"]))
+        return out + [""]
 
     def _step_lines(self, plan: "JacobianPlan") -> list:
         """The steps of ``plan`` as code: afterwards every name in ``plan.entries`` is set."""
@@ -979,9 +1019,11 @@ class _Writer:
                f"def {name}_sparse(t, x):", '    """Jacobian d(rhs)/dx as a csc_array."""',
                "    _stats['jac_calls'] += 1"]
         data = ", ".join(d for _, _, d in entries)
-        out += self.shared_trig(self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
-                                + [f"    _data = np.array([{data}], dtype=float)"])
-        out += [f"    return csc_array((_data, {pattern}[0].copy(), {pattern}[1].copy()), shape=({n}, {n}))", ""]
+        out += _live(self.shared_trig(self.prologue(plan.units, self.eq.derivatives) + self._step_lines(plan)
+                                      + [f"    _data = np.array([{data}], dtype=float)",
+                                         f"    return csc_array((_data, {pattern}[0].copy(), {pattern}[1].copy()), "
+                                         f"shape=({n}, {n}))"]))
+        out += [""]
         return out + self._dense_view(name)
 
     def grad(self, expr, exclude, D) -> dict:

@@ -648,7 +648,8 @@ class _Writer:
     def _constant(self, v, e) -> None:
         value = sp.sympify(e).xreplace(self.pvals)
         if value.is_number and value.is_finite and value.is_real:
-            self.pvals[v], self.values[v] = sp.Float(value), float(value)
+            number = float(value)           # (sympy's Float does not take a symbolic number like 62*pi)
+            self.pvals[v], self.values[v] = sp.Float(number), number
 
     def locked(self, modes: dict | None):
         """Print in fixed switching modes (``modes``: switching function → index) or, with None, as

@@ -82,3 +82,20 @@ def test_dead_assignments_are_dropped_and_what_they_read_with_them():
             "    z, = newton(_blk0, _g, 0, _stats, small=True)", "    return np.array([c])"]
     assert codegen._live(body) == ["    c = 2.0*x0", "    _g[0] = [c]",
                                    "    z, = newton(_blk0, _g, 0, _stats, small=True)", "    return np.array([c])"]
+
+
+def test_a_constant_source_given_as_a_symbolic_number_is_folded():
+    """A force source of ``62*pi`` N (a number sympy keeps symbolic) on a 2 kg mass from rest: the
+    folded constant gives v = F t/m (it used to stop the code generation with a TypeError)."""
+    scene = mp.loads("""
+name: pushed
+elements:
+  src: {type: force_source, value: 62*pi}
+  body: {type: mass, m: 2.0}
+connections:
+  - [src.p, body.a]
+outputs: [body.v]
+simulate: {t_end: 0.5, dt_out: 0.1, rtol: 1.0e-10}
+""")
+    result = pipeline.run(scene, progress=False)
+    assert np.allclose(result["body.v"], 62 * math.pi * result.t / 2.0, rtol=1e-12, atol=1e-12)

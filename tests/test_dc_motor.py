@@ -111,7 +111,12 @@ def test_response_matches_independent_scipy_model():
     """Full model with load inertia, friction and load torque, voltage ramp then step, against a
     hand-written scipy right-hand side of the same two equations."""
     j_load, u_expr = 2.0e-4, "U*min(t/0.02, 1) + 3*step(t - 0.1)"
-    res = run(motor_scene(u=u_expr, j_load=j_load, t_end=0.3, dt=1e-4))
+    # Radau: the output grid lies inside the steps, and DOP853's interpolant between its steps is
+    # not held to rtol (on these equations scipy's own DOP853 at rtol 1e-10 is 7.5e-9 off at its
+    # step ends and 1.5e-6 between them); this test compares the model, not the interpolant
+    text = motor_scene(u=u_expr, j_load=j_load, t_end=0.3, dt=1e-4)
+    res = run(text.replace("rtol: 1.0e-10,", "rtol: 1.0e-10, solver: Radau,", 1))
+    assert res.solver == "Radau"
 
     def volt(t):
         return U * min(t / 0.02, 1.0) + (3.0 if t >= 0.1 else 0.0)

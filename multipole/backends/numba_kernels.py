@@ -617,6 +617,18 @@ def _locate(switches, w, k, Q, y_old, t_old, h, a, b, g_a, tmp, g):
 
 
 @njit(cache=True)
+def _record_event(ev_t, ev_k, iw, t, k):
+    """Append the event (t [s], switching function k); False (status TOO_MANY_EVENTS) when full."""
+    if iw[I_NEV] >= ev_t.size:
+        iw[I_STATUS] = TOO_MANY_EVENTS
+        return False
+    ev_t[iw[I_NEV]] = t
+    ev_k[iw[I_NEV]] = k
+    iw[I_NEV] += 1
+    return True
+
+
+@njit(cache=True)
 def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t, ev_k, Q,
               y_old, J, LUr, pr, LUc, pc, w, time_only, sched_t, sched_k, sched_side, t_side, stop, max_steps):
     """Advance the run by at most ``max_steps`` accepted steps (see the module docstring).
@@ -649,12 +661,8 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
             while iw[I_SCHED] < sched_t.size and sched_t[iw[I_SCHED]] <= t:    # a scheduled crossing
                 k = sched_k[iw[I_SCHED]]
                 t_side[k] = sched_side[iw[I_SCHED]]
-                if iw[I_NEV] >= ev_t.size:
-                    iw[I_STATUS] = TOO_MANY_EVENTS
+                if not _record_event(ev_t, ev_k, iw, t, k):
                     return
-                ev_t[iw[I_NEV]] = t
-                ev_k[iw[I_NEV]] = k
-                iw[I_NEV] += 1
                 iw[I_SCHED] += 1
             fs[F_T_BOUND] = sched_t[iw[I_SCHED]] if iw[I_SCHED] < sched_t.size else t_end
             if n_sw:                          # the side every switch is held on in this segment
@@ -733,13 +741,8 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
         if event >= 0:
             dense_eval(Q, y_old, t_old, h, t_stop, x)
             fs[F_T] = t_stop
-            n_ev = iw[I_NEV]
-            if n_ev >= ev_t.size:
-                iw[I_STATUS] = TOO_MANY_EVENTS
+            if not _record_event(ev_t, ev_k, iw, t_stop, event):
                 return
-            ev_t[n_ev] = t_stop
-            ev_k[n_ev] = event
-            iw[I_NEV] += 1
             stopping = stop[event] and g_sign[event] > 0.0
             # switches that crossed at the same instant (a monitor on a law's own switching function)
             # are events of their own: the restart holds them on the new side they have at t_stop
@@ -747,12 +750,8 @@ def integrate(rhs, jac, switches, implicit, fs, iw, x, f, grid, X, g_sign, ev_t,
             for k in range(n_sw):
                 s_now = _sign(g[k])
                 if k != event and not time_only[k] and s_now != 0.0 and s_now != g_sign[k]:
-                    if iw[I_NEV] >= ev_t.size:
-                        iw[I_STATUS] = TOO_MANY_EVENTS
+                    if not _record_event(ev_t, ev_k, iw, t_stop, k):
                         return
-                    ev_t[iw[I_NEV]] = t_stop
-                    ev_k[iw[I_NEV]] = k
-                    iw[I_NEV] += 1
                     stopping = stopping or (stop[k] and g_sign[k] > 0.0)
             if stopping:
                 iw[I_STATUS] = MONITOR_STOP

@@ -38,6 +38,8 @@ watches the wound-off length with the span's turning.  Units: SI (m, rad, N, N*s
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Callable
 
 import sympy as sp
 
@@ -106,47 +108,111 @@ def tangent(x1, y1, r1, s1, x2, y2, r2, s2):
 def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
     """Planar elastic span [EA, F0 in N, cd in N*s, lengths in m]."""
     s1, s2 = _sense("planar_band", "s1", s1), _sense("planar_band", "s2", s2)
+    params = {"EA": EA, "cd": cd, "F0": F0, "r1": r1, "s1": s1, "r2": r2, "s2": s2,
+              "x1": x1, "y1": y1, "x2": x2, "y2": y2}
+    return planar_span("planar_band", (SpanEnd.circle(1), SpanEnd.circle(2)), params)
+
+
+@dataclass
+class SpanEnd:
+    """What a planar span knows of the contour at one of its ends (``docs/belts.md``, planar curve spans).
+
+    ``support(nu)`` [m] and ``slope(nu)`` [m/rad]: the contour's support function p and its derivative
+    p' as sympy expressions of the normal angle ``nu`` [rad] in the contour's frame; ``angle``: the
+    contour's angle [rad] in the plane (a local name, e.g. a read of the roll's angle; 0: a circle,
+    whose p does not depend on it); ``mean`` [m]: the radius of the circle the start value assumes;
+    ``sense``: the wrap sense as a local name or +-1; ``refine``: fixed-point steps of the start value
+    (0 for a circle, whose start formula is exact)."""
+
+    support: Callable
+    slope: Callable
+    sense: object
+    angle: object = 0
+    mean: object = None
+    refine: int = 0
+
+    @classmethod
+    def circle(cls, k: int) -> "SpanEnd":
+        """End ``k`` on the circle of radius ``r<k>`` with wrap sense ``s<k>`` (the span's parameters)."""
+        r = _S(f"r{k}")
+        return cls(lambda nu: r, lambda nu: sp.Integer(0), _S(f"s{k}"), 0, r)
+
+
+def planar_span(kind: str, ends: tuple, params: dict, reads=None, extra_ports=None) -> Network:
+    """The elastic span on the common tangent of the contours at its two ends (:class:`SpanEnd`).
+
+    Residual of the closure on the inclination g: n . d + s1 p1(nu1) + s2 p2(nu2) = 0 with the contact
+    normals nu1 = g - s1 pi/2 - a1 and nu2 = g + s2 pi/2 - a2 in the contours' frames (a: their angles);
+    span length l_B = t . d - s1 p1' - s2 p2'; contact points K1 = C1 - s1 p1 n + s1 p1' t,
+    K2 = C2 + s2 p2 n - s2 p2' t; the rate of g is (n . d' - s1 p1' a1' - s2 p2' a2')/l_B (the contours'
+    angles enter only where p' != 0: ``extra_ports`` maps ``p1.phi``/``p2.phi`` to the MTF columns
+    that carry a1', a2').  A circle (p = r, p' = 0) gives the tangent of :func:`tangent` exactly."""
+    e1, e2 = ends
     xa, ya, xb, yb, g = _S("xa"), _S("ya"), _S("xb"), _S("yb"), _S("gam")
     dx, dy = xb - xa, yb - ya
-    delta = _S("s1") * _S("r1") + _S("s2") * _S("r2")
+    half = sp.pi / 2 if not (e1.refine or e2.refine) else sp.Float(math.pi / 2)
+
+    def normals(at):
+        return at - e1.sense * half - e1.angle, at + e2.sense * half - e2.angle
+
+    def offset(at):                                   # Delta(g) = s1 p1(nu1) + s2 p2(nu2)
+        n1, n2 = normals(at)
+        return e1.sense * e1.support(n1) + e2.sense * e2.support(n2)
+
+    n1, n2 = normals(g)
+    p1, p2, d1, d2 = e1.support(n1), e2.support(n2), e1.slope(n1), e2.slope(n2)
+    delta = e1.sense * p1 + e2.sense * p2
     c, s = sp.cos(g), sp.sin(g)
-    lb = c * dx + s * dy                          # t . d: the span length on the tangent
-    lb0, g0, _k1, _k2 = tangent(xa, ya, _S("r1"), _S("s1"), xb, yb, _S("r2"), _S("s2"))
+    lb = c * dx + s * dy - e1.sense * d1 - e2.sense * d2     # t . (K2 - K1): the span length on the tangent
+    # start value: the tangent of the circles of radius `mean`, then fixed-point steps
+    # g <- atan2(d) + atan2(Delta(g), sqrt(|d|^2 - Delta(g)^2)) (exact at once for circles)
+    lb0, g0, _k1, _k2 = tangent(xa, ya, e1.mean, e1.sense, xb, yb, e2.mean, e2.sense)
+    radicand = dx ** 2 + dy ** 2 - (e1.sense * e1.mean + e2.sense * e2.mean) ** 2
+    for _ in range(max(e1.refine, e2.refine)):
+        radicand = dx ** 2 + dy ** 2 - offset(g0) ** 2
+        g0 = sp.atan2(dy, dx) + sp.atan2(offset(g0), sp.sqrt(radicand))
+    if e1.refine or e2.refine:
+        lb0 = lb.xreplace({g: g0})
     q = _S("delta")
     lx = lb - q
+    turning = [k for k, e in ((1, d1), (2, d2)) if not sp.sympify(e).is_zero]
+    rate_row = [s / lb, -c / lb, -s / lb, c / lb] + [-(e1.sense * d1 if k == 1 else e2.sense * d2) / lb
+                                                    for k in turning]
     children = {
-        # a1: t . (v2 - v1), the stretch rate of the span seen from the centres; a2: gamma'
-        "K": MTF([[-c, -s, c, s], [s / lb, -c / lb, -s / lb, c / lb]], ["translational", "rotational"],
-                 ["translational"] * 4),
+        # a1: t . (v2 - v1), the stretch rate of the span seen from the centres; a2: gamma' (with the
+        # contours' turning where their contact slides: columns b5, b6)
+        "K": MTF([[-c, -s, c, s] + [0] * len(turning), rate_row], ["translational", "rotational"],
+                 ["translational"] * 4 + ["rotational"] * len(turning)),
         # common tension: e_s = F (the pull on the span along t), e_e1 = e_e2 = -F; x carries delta'
         "J": junction_a(["s", "e1", "e2", "x"], "translational", [1, -1, -1, -1]),
         "X": junction_b(["x", "c", "r"], "translational"),
         **span_law(_S("EA") / lx, _S("cd") / lx, _S("F0") * lb0 / (_S("EA") + _S("F0"))),
         # gamma' to both band ports (no torque) and its integral, the closure-bound inclination
         "G": junction_b(["k", "e1", "e2", "tap"], "rotational"),
-        "tap": Tap("rotational", q0=g0),
-        "t1": Se(0, "rotational"), "t2": Se(0, "rotational")}
+        "tap": Tap("rotational", q0=g0)}
+    children |= {f"t{k}": Se(0, "rotational") for k in (1, 2) if k not in turning}
     connections = [["K.a1", "J.s"], ["J.x", "X.x"], ["X.c", "c.p"], ["X.r", "r.p"], ["K.a2", "G.k"],
                    ["G.tap", "tap.p"]]
     ports = {"e1.l": "J.e1", "e1.gamma": "G.e1", "e2.l": "J.e2", "e2.gamma": "G.e2",
-             "p1.x": "K.b1", "p1.y": "K.b2", "p1.phi": "t1.p", "p2.x": "K.b3", "p2.y": "K.b4", "p2.phi": "t2.p"}
-    params = {"EA": EA, "cd": cd, "F0": F0, "r1": r1, "s1": s1, "r2": r2, "s2": s2,
-              "x1": x1, "y1": y1, "x2": x2, "y2": y2}
-    k1 = (xa - _S("s1") * _S("r1") * -s, ya - _S("s1") * _S("r1") * c)
-    k2 = (xb + _S("s2") * _S("r2") * -s, yb + _S("s2") * _S("r2") * c)
+             "p1.x": "K.b1", "p1.y": "K.b2", "p2.x": "K.b3", "p2.y": "K.b4"}
+    ports |= {f"p{k}.phi": f"K.b{5 + turning.index(k)}" if k in turning else f"t{k}.p" for k in (1, 2)}
+    k1 = (xa - e1.sense * p1 * -s + e1.sense * d1 * c, ya - e1.sense * p1 * c + e1.sense * d1 * s)
+    k2 = (xb + e2.sense * p2 * -s - e2.sense * d2 * c, yb + e2.sense * p2 * c - e2.sense * d2 * s)
     closure = Closure(["tap.q"], [-s * dx + c * dy + delta],
-                      "the span on the common tangent of the two circles",
+                      "the span on the common tangent of the two " + ("circles" if not turning else "contours"),
                       # (10 um)^2: a span of (nearly) zero length has no direction (atan2(0, 0) := 0 is refused)
-                      conditions=[(dx ** 2 + dy ** 2 - delta ** 2 - 1e-10, "the circles leave no room for a tangent "
-                                   "of positive length: |C2 - C1| must exceed |s1 r1 + s2 r2| (spans shorter than "
-                                   "10 um are refused)", "m^2")],
+                      conditions=[(radicand - 1e-10, "the " + ("circles leave" if not turning else "contours leave")
+                                   + " no room for a tangent of positive length: |C2 - C1| must exceed "
+                                   + ("|s1 r1 + s2 r2|" if not turning else "|s1 p1 + s2 p2| (the contours overlap)")
+                                   + " (spans shorter than 10 um are refused)", "m^2")],
                       guard=(lb, 1e-6, "span length"))
+    names = {xa, ya, xb, yb} | set().union(*(r.free_symbols for r in (e1.angle, e2.angle, e1.sense, e2.sense)
+                                             if isinstance(r, sp.Basic)))
 
     def local(expr):
-        """``expr`` in the flattened names: the position reads and the inclination state."""
-        return lambda V: sp.sympify(expr).xreplace({sym: V.param(sym.name) for sym in (xa, ya, xb, yb)}
-                                                   | {g: V.x("tap.q")} | {_S(n): V.param(n) for n in ("r1", "r2",
-                                                                                                        "s1", "s2")})
+        """``expr`` in the flattened names: the position reads, the parameters and the inclination state."""
+        return lambda V: sp.sympify(expr).xreplace({sym: V.param(sym.name) for sym in sp.sympify(expr).free_symbols
+                                                    if sym in names or sym.name in params} | {g: V.x("tap.q")})
 
     def qv(expr):
         return Quantity(local(expr))
@@ -155,11 +221,11 @@ def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
           "length": qv(lb), "free": Quantity(lambda V: local(lb)(V) - V.x("c.q")),
           "gamma": Quantity(lambda V: V.x("tap.q")), "rate": Quantity(lambda V: V.f("c.p")),
           "xK1": qv(k1[0]), "yK1": qv(k1[1]), "xK2": qv(k2[0]), "yK2": qv(k2[1])}
-    return Network("planar_band", children, connections, ports, params, q_, signals={"delta": "c.q", "gam": "tap.q"},
+    return Network(kind, children, connections, ports, params, q_, signals={"delta": "c.q", "gam": "tap.q"},
                    bundles={"e1": "band", "e2": "band", "p1": "planar", "p2": "planar"},
                    positions={"e1.gamma": g, "e2.gamma": g + sp.pi},
                    reads={"xa": ("p1.x", _S("x1")), "ya": ("p1.y", _S("y1")),
-                          "xb": ("p2.x", _S("x2")), "yb": ("p2.y", _S("y2"))},
+                          "xb": ("p2.x", _S("x2")), "yb": ("p2.y", _S("y2"))} | dict(reads or {}),
                    fixed=("e1.l", "e2.l", "p1.x", "p1.y", "p1.phi", "p2.x", "p2.y", "p2.phi"),
                    closures=[closure], sketch=[Sketch([k1, k2], ["", ""], style="line")])
 
@@ -227,29 +293,41 @@ def planar_drum(r, J, phi0, omega0, w, m, gx, gy, mu, r_pin, stored, x1, y1):
     return _planar_roll("planar_drum", 1, params, stored=stored)
 
 
-def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None) -> Network:
+def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None, contact=None,
+                 outline=None) -> Network:
     """A roll (``sides`` = 2) or drum (1) of :func:`elements.belt._roll` on the planar bearing ``a``,
-    its centre ``c`` handed to the spans; ``params`` the element's parameters (by name)."""
+    its centre ``c`` handed to the spans; ``params`` the element's parameters (by name).
+
+    ``contact(k)``: a curve roll's (lever arm, wound length) at band port k, expressions of the roll's
+    angle ``phi``, the span direction ``g<k>`` read at the port and its change ``dg<k>`` since t = 0
+    (:func:`elements.belt._roll`); its ``c.phi`` is then the roll's own angle (the spans read the
+    contour's pose there), not the housing's.  ``outline``: (theta, r) [rad, m] of the polygon drawn."""
     w, m, mu = params["w"], params["m"], params["mu"]
     # the 1-D roll with its parameters bound to this element's (a scene's expression like
     # omega0: w*r/R is resolved once, in the scene, not inside the roll where w is the winding sense);
     # a roll's wrap is the state beta below (monitors band_lifts_off and, with mu_c, capstan_limit)
-    roll = _roll(kind, sides, _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0,
-                 _S("beta") if sides == 2 else None, mu_c=None if mu_c is None else _S("mu_c"))
+    roll = _roll(kind, sides, None if contact else _S("r"), _S("J"), _S("phi0"), _S("omega0"), w, 0, 0,
+                 _S("beta") if sides == 2 else None, mu_c=None if mu_c is None else _S("mu_c"), contact=contact)
     children = {"R": roll}
     ends = range(1, sides + 1)
     connections, ports = [], {"drive": "R.drive", "a.phi": "H.a", "c.phi": "H.c"} | \
         {f"e{k}.l": f"R.e{k}.l" for k in ends}
     children["H"] = junction_b(["a", "c"], "rotational")     # the housing angle, handed from a to c
-    signals = {"rphi": "R.tap.q"}
+    signals = {"rphi": "R.tap.q"} | ({f"dg{k}": f"tap{k}.q" for k in ends} if contact else {})
+    if contact:
+        # a curve roll hands its own angle to the spans (they read the contour's pose at c.phi)
+        children["H"] = junction_b(["a"] + ([] if _zero(mu) else ["f"]), "rotational")
+        children["D"] = junction_b(["o", "r", "c"], "rotational")
+        connections.append(["D.r", "R.drive"])
+        ports |= {"drive": "D.o", "c.phi": "D.c"}
     if not _zero(mu):
         # pin friction between the roll and its housing, loaded by the span forces on the axis
-        children["H"] = junction_b(["a", "c", "f"], "rotational")
-        children["D"] = junction_b(["o", "r", "f"], "rotational")
+        children["H"] = junction_b(["a"] + ([] if contact else ["c"]) + ["f"], "rotational")
+        children["D"] = junction_b(["o", "r", "f"] + (["c"] if contact else []), "rotational")
         children["F"] = junction_a(["a", "b", "x"], "rotational", [1, -1, -1])
         children["fric"] = R(law=_S("mu") * _S("r_pin") * sp.sqrt(_S("Fcx") ** 2 + _S("Fcy") ** 2) * sp.sign(_S("f")),
                              dom="rotational")
-        connections += [["D.r", "R.drive"], ["D.f", "F.a"], ["H.f", "F.b"], ["F.x", "fric.p"]]
+        connections += ([] if contact else [["D.r", "R.drive"]]) + [["D.f", "F.a"], ["H.f", "F.b"], ["F.x", "fric.p"]]
         ports["drive"] = "D.o"
         signals.update({"Fcx": "xJ.c.e", "Fcy": "yJ.c.e"})
     for axis in "xy":
@@ -271,13 +349,26 @@ def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None) ->
         connections += [[f"G{k}.i", f"R.e{k}.gamma"], [f"G{k}.tap", f"tap{k}.p"]]
         ports[f"e{k}.gamma"] = f"G{k}.o"
     xa, ya, pa = _S("xa"), _S("ya"), _S("pa")
+    # the band wound off at port k: w_k r [(phi - phi0) - (gamma_k - gamma_k(0))] on a circle, the
+    # contour's w_k (S(nu_k(0)) - S(nu_k)) on a curve roll (w_1 = w, w_2 = -w)
+    wound = {k: (1 if k == 1 else -1) * (_S("w") * contact(k)[1] if contact else
+                                         _S("w") * _S("r") * (_S("rphi") - _S("phi0") - _S(f"dg{k}"))) for k in ends}
+    signals |= {f"dg{k}": f"tap{k}.q" for k in ends}
+
+    def local(expr):
+        """``expr`` (the roll's local names) in the flattened names."""
+        return lambda V: expr.xreplace({v: V.x("R.tap.q") if v.name in ("rphi", "phi") else
+                                        V.x(f"tap{v.name[2:]}.q") if v.name.startswith("dg") else V.param(v.name)
+                                        for v in expr.free_symbols})
+
     q = {"phi": Quantity(lambda V: V.x("R.tap.q")), "omega": Quantity(lambda V: V.f("R.drive")),
-         "F1": Quantity(lambda V: V.e("R.T1.a")),
-         "lr1": Quantity(lambda V: V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0") - V.x("tap1.q"))),
+         "F1": Quantity(lambda V: V.e("R.T1.a")), "lr1": Quantity(local(wound[1])),
          "Fx": Quantity(lambda V: V.e("xJ.c")), "Fy": Quantity(lambda V: V.e("yJ.c")),
          "x": Quantity(lambda V: V.param("xa")), "y": Quantity(lambda V: V.param("ya")),
          "friction": Quantity(lambda V: V.e("fric.p") if "fric" in children else sp.Integer(0))}
     reads = {"xa": ("a.x", _S("x1")), "ya": ("a.y", _S("y1")), "pa": ("a.phi", 0)}
+    if contact:
+        reads |= {f"g{k}": (f"e{k}.gamma", 0) for k in ends}
     if sides == 2:
         wrap0 = ws * (g1 - g2) - sp.pi
         children["B"] = junction_a(["g1", "g2", "t"], "rotational", [ws, -ws, -1])
@@ -286,26 +377,24 @@ def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None) ->
         signals["beta"] = "wrap.q"
         reads |= {"g1": ("e1.gamma", 0), "g2": ("e2.gamma", 0)}
         q |= {"F2": Quantity(lambda V: V.e("R.T2.a")),
-              "lr2": Quantity(lambda V: -V.param("w") * V.param("r") * (V.x("R.tap.q") - V.param("phi0")
-                                                                         - V.x("tap2.q"))),
+              "lr2": Quantity(local(wound[2])),
               "wrap": Quantity(lambda V: V.x("wrap.q"))}
     params = dict(params) | {"w": int(w) if w in (1, -1) else w}
     monitors = []
     if stored is not None:
         # the band paid out past the anchor: the wound-off length with the turning of the span
-        signals["dg1"] = "tap1.q"
-        paid_out = _S("w") * _S("r") * (_S("rphi") - _S("phi0") - _S("dg1"))
-        monitors.append(Monitor(_S("stored") - paid_out, "drum_paid_out",
+        monitors.append(Monitor(_S("stored") - wound[1], "drum_paid_out",
                                 "paid out all the band stored on it: the band end would tear off its anchor",
                                 stop=True, fix="store more band on the drum (parameter stored) or pay out less"))
     ph = _S("rphi")
-    circle = [(xa + _S("r") * sp.cos(ph + 2 * math.pi * k / _CIRCLE), ya + _S("r") * sp.sin(ph + 2 * math.pi * k / _CIRCLE))
-              for k in range(_CIRCLE + 1)]
+    th, rr = outline if outline else ([2 * math.pi * k / _CIRCLE for k in range(_CIRCLE)], [_S("r")] * _CIRCLE)
+    circle = [(xa + rk * sp.cos(ph + tk), ya + rk * sp.sin(ph + tk)) for tk, rk in zip(th, rr)]
+    circle.append(circle[0])
     return Network(kind, children, connections, ports, params, q, signals=signals,
                    bundles={"a": "planar", "c": "planar"} | {f"e{k}": "band" for k in ends},
-                   positions={"c.x": xa, "c.y": ya, "c.phi": pa}, reads=reads, monitors=monitors,
+                   positions={"c.x": xa, "c.y": ya, "c.phi": ph if contact else pa}, reads=reads, monitors=monitors,
                    fixed=("a.x", "a.y", "a.phi") + tuple(f"e{k}.gamma" for k in ends),
-                   sketch=[Sketch(circle, [""] * (_CIRCLE + 1), style="line"),
+                   sketch=[Sketch(circle, [""] * len(circle), style="line"),
                            Sketch([(xa, ya), circle[0]], ["", ""], style="line"),
                            Sketch([(xa, ya)], [""], style="point")])
 

@@ -34,10 +34,10 @@ import networkx as nx
 import numpy as np
 import sympy as sp
 
-from .diagnostics import run_checks
+from .diagnostics import names_list, run_checks
 from .network import Equation, FlatNetwork, State, var
 from .primitives import T
-from .stages import bulk
+from .stages import bulk, numeric_function
 
 _ROLE_RANK = {"storage": 0, "law": 0, "source": 0}
 
@@ -146,7 +146,6 @@ class Analysis:
     def __repr__(self) -> str:
         """One short line: the verdict, the counts of findings by severity and the states."""
         counts = ", ".join(f"{sum(d.severity == s for d in self.diagnostics)} {s}(s)" for s in ("error", "warning"))
-        from .simulate import names_list
         names = [s.name for s in self.states]
         shown = names_list(names)
         codes = sorted({d.code for d in self.diagnostics if d.severity == "error"})
@@ -158,7 +157,6 @@ class Analysis:
         from html import escape
         rows = "".join(f"<tr><td>{escape(d.severity)}</td><td>{escape(d.code)}</td><td>{escape(d.message)}</td>"
                        f"<td>{escape(d.fix)}</td></tr>" for d in self.diagnostics)
-        from .simulate import names_list
         names = [s.name for s in self.states]
         return (f"<div><b>{'well-posed' if self.ok else 'NOT well-posed'}</b>: {escape(repr(self)[10:-1])}"
                 f"<p>states ({len(names)}): {escape(names_list(names, 50))}</p>"
@@ -454,7 +452,7 @@ class _Analyser:
             return out
         free = sorted(set().union(*(entries[k].free_symbols for k in symbolic)), key=lambda v: v.name)
         try:
-            fn = sp.lambdify(free, [entries[k] for k in symbolic], "numpy")
+            fn = numeric_function(free, [entries[k] for k in symbolic])
         except Exception:          # noqa: BLE001 -- a function numpy does not know: sympy below
             fn = None
         for row, pt in zip(out, pts):

@@ -20,7 +20,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from .equations import Equations, derivative
+from .equations import Equations, derivative, switching_functions
 from .errors import ModelError, NewtonError
 from .primitives import T
 from .stages import bulk
@@ -184,6 +184,108 @@ def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, scalar: bo
                       f"(|F| = {norm} at the last solution, {total} iterations)")
 
 
+def newton_failed(k: int, residuals, total: int) -> NewtonError:
+    """The error of a generated scalar Newton function (:func:`scalar_newton_lines`) whose two starts
+    failed: ``residuals`` at the warm start, ``total`` iterations."""
+    norm = math.sqrt(sum(f * f for f in residuals))
+    shown = f"{norm:.3g}" if math.isfinite(norm) else "not computable"
+    return NewtonError(f"Newton's method did not converge in algebraic loop {k} "
+                       f"(|F| = {shown} at the last solution, {total} iterations)")
+
+
+#: loops up to this many unknowns get a Newton function of their own in scalar variables, printed once
+#: per loop by :func:`scalar_newton_lines` (both backends; the dyads of a mechanism have two unknowns)
+SCALAR_NEWTON_MAX = 3
+
+
+@functools.lru_cache(maxsize=None)
+def cramer(n: int) -> tuple[str, tuple]:
+    """Code of ``det(J)`` and of ``det(J_i)`` (column i replaced by ``F``) for the scalars ``J{i}{j}``
+    and ``F{i}``: the Newton step is ``d_i = det(J_i) / det(J)``."""
+    J = sp.Matrix(n, n, lambda i, j: sp.Symbol(f"J{i}{j}"))
+    F = sp.Matrix(n, 1, lambda i, _j: sp.Symbol(f"F{i}"))
+    cols = []
+    for i in range(n):
+        Ji = J.copy()
+        Ji[:, i] = F
+        cols.append(str(sp.expand(Ji.det(method="berkowitz"))))
+    return str(sp.expand(J.det(method="berkowitz"))), tuple(cols)
+
+
+def scalar_newton_lines(name: str, params: str, n: int, start: list, residual: str, done: list,
+                        fail: list, doc: str) -> list:
+    """Lines of ``def name(params)``: the damped Newton iteration of :func:`_damped_newton` (same steps,
+    same tests, tolerance 1e-12, at most 3 nudges off a singular Jacobian) for a loop of ``n`` unknowns
+    in scalars ``z0, z1, ...`` with Cramer's step, started from the code ``start`` (one per unknown),
+    then from zero (:data:`NEWTON_MAX_ITER`).  ``residual``: the call returning ``(F0, ..., J00, J01,
+    ...)`` with ``{z}`` for the unknowns, NaN where the residuals cannot be computed (the attempt then
+    fails where :func:`_damped_newton` gets None).  ``done``: the lines (8 spaces) run with the solution
+    in ``z0, ...`` and the iteration count in ``total`` (unindented, ending in a return); ``fail``: the
+    lines after both attempts failed (unindented).  Written once per loop, it is the whole solve: no list, array or call besides
+    the residual's (in Python the generic :func:`newton` costs twice the residual evaluations)."""
+    r = range(n)
+    zs, news, ds = [f"z{i}" for i in r], [f"n{i}" for i in r], [f"d{i}" for i in r]
+    out = ", ".join([f"F{i}" for i in r] + [f"J{i}{j}" for i in r for j in r]) + ","
+    det, cols = cramer(n)
+    tup = ", ".join(zs) + ","
+    norm = "abs(F0)" if n == 1 else "math.hypot(F0, F1)"      # no overflow of the squares
+    for i in range(2, n):
+        norm = f"math.hypot({norm}, F{i})"
+    big = "max(" + ", ".join(f"abs({z})" for z in zs) + ", 0.0)"
+    at = lambda names: residual.format(z=", ".join(names))      # noqa: E731
+    ind = " " * 16
+    lines = [f"def {name}({params}):", f'    """{doc}"""',
+             "    total = 0", "    for attempt in range(2):",
+             f"        {tup} = ({', '.join(start)},) if attempt == 0 else ({', '.join('0.0' for _ in r)},)",
+             f"        {out} = {at(zs)}", f"        norm = {norm}",
+             "        if not norm < math.inf:     # not computable at the start",
+             "            continue",
+             "        nudges = 0",
+             f"        for it in range(1, {NEWTON_MAX_ITER[0]} + 1 if attempt == 0 else {NEWTON_MAX_ITER[1]} + 1):",
+             "            if norm == 0.0:     # a zero residual is a solution, even where J is singular"]
+    lines += [ind + line for line in done]
+    lines += ["            total += 1", f"            det = {det}", "            if det != 0.0:"]
+    lines += [f"                {d} = ({c}) / det" for d, c in zip(ds, cols)]
+    lines += ["            if det == 0.0 or not " + " + ".join(f"abs({d})" for d in ds) + " < math.inf:",
+              "                # off the root (d*f*|f| at f = 0): step off the singular point",
+              "                if nudges == 3:", "                    break", "                nudges += 1"]
+    lines += [f"                {z} += {NEWTON_NUDGE} * (1.0 + abs({z}))" for z in zs]
+    lines += [f"                {out} = {at(zs)}", f"                norm = {norm}",
+              "                if not norm < math.inf:", "                    break", "                continue",
+              "            step = max(" + ", ".join(f"abs({d})" for d in ds) + ", 0.0)",
+              f"            if step <= 1e-12 * (1.0 + {big}):     # converged to rounding: no line search"]
+    lines += [f"                {z} -= {d}" for z, d in zip(zs, ds)] + [ind + line for line in done]
+    lines += ["            lam = 1.0", "            while True:"]
+    lines += [f"                {m} = {z} - lam * {d}" for m, z, d in zip(news, zs, ds)]
+    lines += [f"                {out} = {at(news)}", f"                norm_new = {norm}",
+              "                if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:", "                    break",
+              "                lam *= 0.5",
+              "            if not norm_new < math.inf:     # not computable even at the shortest step",
+              "                break",
+              f"            {tup} = {', '.join(news)},", "            norm = norm_new",
+              f"            if lam * step <= 1e-12 * (1.0 + {big}) or norm == 0.0:"]
+    lines += [ind + line for line in done]
+    return lines + ["    " + line for line in fail] + [""]
+
+
+def loop_invariants(residuals, zs, prefix: str):
+    """A loop's residuals without their terms that do not depend on the unknowns ``zs`` (the crank's
+    position in a dyad's closure): ``(residuals, [(symbol, terms)])``, each residual ``symbol + rest``
+    where it has such terms (with symbols), so that they are computed once per solve instead of once
+    per Newton iteration; the symbols are named ``prefix0, prefix1, ...``."""
+    out, hoisted = [], []
+    for r in residuals:
+        r = sp.sympify(r)
+        if isinstance(r, sp.Add):
+            fixed, rest = r.as_independent(*zs, as_Add=True)
+            if fixed.free_symbols and rest != 0:
+                sym = sp.Symbol(f"{prefix}{len(hoisted)}")
+                hoisted.append((sym, fixed))
+                r = sym + rest
+        out.append(r)
+    return out, hoisted
+
+
 class _Printer(PythonCodePrinter):
     def __init__(self, names):
         super().__init__({"fully_qualified_modules": True, "standard": "python3"})
@@ -283,6 +385,7 @@ _TRIG_CALL = re.compile(r"math\.(sin|cos)\(([A-Za-z_]\w*)\)")
 
 _ASSIGNED = re.compile(r"    ([A-Za-z_]\w*) = ")
 _WORD = re.compile(r"[A-Za-z_]\w*")
+_SOLVE = re.compile(r"\b_?newton\w*\(")
 
 
 def _live(body: list) -> list:
@@ -296,7 +399,7 @@ def _live(body: list) -> list:
     keep = [True] * len(body)
     for i in range(len(body) - 1, -1, -1):           # last first: a dropped line frees what it read
         m = _ASSIGNED.match(body[i])
-        if m and count[m.group(1)] == 1 and "newton(" not in body[i]:
+        if m and count[m.group(1)] == 1 and not _SOLVE.search(body[i]):
             keep[i] = False
             for w in _WORD.findall(body[i]):
                 count[w] -= 1
@@ -313,21 +416,6 @@ def _ident(name: str, taken: set) -> str:
         cand = f"{base}_{k}"
     taken.add(cand)
     return cand
-
-
-def switching_functions(expr) -> list:
-    """Expressions whose sign change makes ``expr`` switch (steps, max/min, abs, sign, tables)."""
-    out = []
-    for node in sp.preorder_traversal(expr):
-        if isinstance(node, (sp.Heaviside, sp.sign, sp.Abs)):
-            out.append(node.args[0])
-        elif isinstance(node, (sp.Max, sp.Min)) and len(node.args) == 2:
-            out.append(node.args[0] - node.args[1])
-        elif isinstance(node, sp.Piecewise):
-            for _e, c in node.args:
-                if isinstance(c, sp.core.relational.Relational):
-                    out.append(c.lhs - c.rhs)
-    return out
 
 
 def switch_list(writer) -> list:
@@ -631,6 +719,9 @@ class _Writer:
         self._printed: dict = {}
         self._lines: dict = {}
         self._folded: dict = {}
+        #: module-level functions the loops' code calls (their residual and Newton functions)
+        self.blocks_src: list = []
+        self._loop_functions: dict = {}      # loop -> {its residuals' code: suffix of its functions}
         self.values = {p: float(v) for p, v in eq.params.items() if p not in self.runtime}
         self._constants()
 
@@ -739,22 +830,58 @@ class _Writer:
         if u.kind == "linear":
             return self.matrix_lines("_A", b.matrix) + [f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
                                                         f"{lhs} np.linalg.solve(_A, _b).tolist()"]
-        Jz = _jacobian(b.residuals, zs)
         k = u.block
+        if n <= SCALAR_NEWTON_MAX:
+            return self.scalar_newton(b, zs, k)
+        Jz = _jacobian(b.residuals, zs)
         seed = [f"    _guess[{k}] = [{', '.join(N[v] for v in b.start)}]"] if b.start else []
         return seed + self._newton_lines(b, zs, Jz, k, lhs)
+
+    def scalar_newton(self, b, zs, k) -> list:
+        """The call of loop ``k``'s Newton function (up to :data:`SCALAR_NEWTON_MAX` unknowns ``zs``),
+        after the residuals' terms free of the unknowns (:func:`loop_invariants`); the first call in
+        each printing mode adds the module-level residual function ``_blk{k}`` (the residuals and
+        their Jacobian as one tuple, sines and cosines shared, NaN where not computable) and Newton
+        function ``_newton{k}`` (:func:`scalar_newton_lines`) to :attr:`blocks_src` (again, as
+        ``_newton{k}_m``, only where the residuals print otherwise in fixed switching modes)."""
+        N, P = self.names, self.P
+        n = len(zs)
+        res, hoisted = loop_invariants([self.fold(r) for r in b.residuals], zs, f"_l{k}_")
+        for sym, _e in hoisted:
+            N[sym] = str(sym)
+        Jz = sp.Matrix(res).jacobian(zs)
+        deps = sorted(set().union(*(e.free_symbols for e in list(res) + list(Jz))) - set(zs), key=lambda v: N[v])
+        start = [N[v] for v in b.start] if b.start else [f"_guess[{k}][{i}]" for i in range(n)]
+        values = [P(r) for r in res] + [P(Jz[i, j]) for i in range(n) for j in range(n)]
+        body = self.shared_trig([f"    return ({', '.join(values)},)"])
+        printed = self._loop_functions.setdefault(k, {})
+        known = body[-1] in printed
+        mode = printed.setdefault(body[-1], "_m" if printed else "")
+        lines = [f"    {N[sym]} = {P(e)}" for sym, e in hoisted]
+        lines.append(f"    {', '.join(N[z] for z in zs)}, = _newton{k}{mode}({', '.join(start + [N[d] for d in deps])})")
+        if known:
+            return lines
+        names = ", ".join(N[v] for v in list(zs) + deps)
+        self.blocks_src += [f"def _blk{k}{mode}({names}):",
+                            f'    """Residuals of the algebraic loop {k} and their Jacobian (NaN where not computable)."""',
+                            "    try:"] + ["    " + line for line in body] + \
+            ["    except (OverflowError, ValueError, ZeroDivisionError):",
+             f"        return ({', '.join('math.nan' for _ in values)},)", ""]
+        args = "".join(f", _a{i}" for i in range(len(deps)))
+        params = ", ".join(f"s{i}" for i in range(n)) + args
+        zs_ = ", ".join(f"z{i}" for i in range(n)) + ","
+        done = ["_stats['newton_iterations'] += total", "_stats['newton_solves'] += 1"]
+        done += [] if b.start else [f"_guess[{k}] = [{zs_}]"]
+        self.blocks_src += scalar_newton_lines(
+            f"_newton{k}{mode}", params, n, [f"s{i}" for i in range(n)], f"_blk{k}{mode}({{z}}{args})",
+            done + [f"return {zs_}"],
+            [f"raise newton_failed({k}, _blk{k}{mode}({', '.join(f's{i}' for i in range(n))}{args})[:{n}], total)"],
+            f"Damped Newton for the loop {k} from (s0, ...), then from zero; its solution as a tuple.")
+        return lines
 
     def _newton_lines(self, b, zs, Jz, k, lhs) -> list:
         N, P = self.names, self.P
         n = len(zs)
-        if n == 1:
-            return [f"    def _blk{k}({N[zs[0]]}):", f"        return ({P(b.residuals[0])}, {P(Jz[0, 0])})",
-                    f"    {N[zs[0]]} = newton(_blk{k}, _guess, {k}, _stats, scalar=True)"]
-        if n <= SMALL_NEWTON_MAX:         # lists of floats (newton(small=True))
-            rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
-            return [f"    def _blk{k}(_z):", f"        {', '.join(N[z] for z in zs)}, = _z",
-                    f"        return ([{', '.join(P(r) for r in b.residuals)}], [{rows}])",
-                    f"{lhs} newton(_blk{k}, _guess, {k}, _stats, small=True)"]
         residuals = f"np.array([{', '.join(P(r) for r in b.residuals)}])"
         if n <= DENSE_MAX_UNKNOWNS:
             rows = ", ".join("[" + ", ".join(P(Jz[i, j]) for j in range(n)) + "]" for i in range(n))
@@ -1243,7 +1370,7 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
 
     def ders():
         return ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
-    src = ["import math", "import numpy as np", "",
+    src = ["import math", "import numpy as np", "", "from multipole.codegen import newton, newton_failed", "",
            "_stats = {'rhs_calls': 0, 'jac_calls': 0, 'newton_iterations': 0, 'newton_solves': 0}",
            f"_guess = {[[0.0] * len(b.variables) for b in eq.blocks]!r}", ""]
     if w.runtime:
@@ -1282,7 +1409,7 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
                           eq.derivatives, f"np.array([{ders()}])", ["    _stats['rhs_calls'] += 1"])
         src += w.jacobian("jac_in_mode", sparse)
         w.locked(None)
-    return "\n".join(src) + "\n"
+    return "\n".join(src + w.blocks_src) + "\n"
 
 
 _CACHE: dict = {}

@@ -100,3 +100,10 @@ class Diagnostic:
         if self.fix:
             text += f"\n    fix: {self.fix}"
         return text
+
+
+def names_list(names, most: int = 8) -> str:
+    """``a, b, c`` (for a short repr) — at most ``most`` names, then ``… (n more)``."""
+    names = list(names)
+    more = f", … ({len(names) - most} more)" if len(names) > most else ""
+    return ", ".join(names[:most]) + more

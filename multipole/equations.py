@@ -29,7 +29,7 @@ from .diagnostics import Diagnostic
 from .errors import IllPosedError, ModelError
 from .network import closure_order, var
 from .primitives import T
-from .stages import bulk
+from .stages import bulk, numeric_function
 
 #: linear loops up to this size are solved symbolically
 SYMBOLIC_LIMIT = 8
@@ -497,7 +497,7 @@ def assemble(analysis: Analysis, name: str = "model") -> Equations:
             raise err
         derivative = any(eqs[i].role == "differentiated" for i in members)
         first = len(blocks)
-        if len(zs) <= CRAMER_LIMIT and A.free_symbols - params.keys():
+        if len(zs) <= CRAMER_LIMIT:
             blocks.append(Block("linear", zs, _cramer(A, b), res, owners, notes, A, b))
         elif len(zs) <= SYMBOLIC_LIMIT:
             sol = A.LUsolve(b)
@@ -701,8 +701,9 @@ def _newton_block(b: Block, values: dict):
     if any(r.free_symbols - set(b.variables) for r in res):
         raise ArithmeticError("the loop needs values that are not available")
     try:
-        fun = sp.lambdify([b.variables], res, "numpy")
-        jac = sp.lambdify([b.variables], sp.Matrix(res).jacobian(b.variables), "numpy")
+        residuals = numeric_function(b.variables, res)
+        jacobian = numeric_function(b.variables, list(sp.Matrix(res).jacobian(b.variables)))
+        fun, jac = (lambda z: residuals(*z)), (lambda z: jacobian(*z))
     except Exception as exc:      # noqa: BLE001 -- sympy cannot print it for numpy: not computable here
         raise ArithmeticError(f"the loop cannot be evaluated numerically here ({exc})") from None
 
@@ -933,3 +934,18 @@ def _available(analysis: Analysis) -> dict:
         out[name] = analysis.substitute(expr)
         units[name] = unit
     return out, units
+
+
+def switching_functions(expr) -> list:
+    """Expressions whose sign change makes ``expr`` switch (steps, max/min, abs, sign, tables)."""
+    out = []
+    for node in sp.preorder_traversal(expr):
+        if isinstance(node, (sp.Heaviside, sp.sign, sp.Abs)):
+            out.append(node.args[0])
+        elif isinstance(node, (sp.Max, sp.Min)) and len(node.args) == 2:
+            out.append(node.args[0] - node.args[1])
+        elif isinstance(node, sp.Piecewise):
+            for _e, c in node.args:
+                if isinstance(c, sp.core.relational.Relational):
+                    out.append(c.lhs - c.rhs)
+    return out

@@ -27,8 +27,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from .codegen import switching_functions
-from .equations import Equations
+from .equations import Equations, switching_functions
 
 
 @dataclass
@@ -128,7 +127,7 @@ class _Graph:
 
 def _switches(eq: Equations, blocks, inputs) -> list:
     """The switching functions of the blocks ``blocks`` and of the inputs ``inputs`` (see
-    :func:`multipole.codegen.switching_functions`), without repeats."""
+    :func:`multipole.equations.switching_functions`), without repeats."""
     exprs = [e for k in sorted(blocks) for e in (eq.blocks[k].solution or eq.blocks[k].residuals)]
     exprs += [sp.sympify(eq.inputs[u]) for u in inputs]
     out: dict = {}

@@ -29,11 +29,10 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
+from .diagnostics import names_list
 from .errors import Interrupted, LongRunWarning, MultipoleError, NewtonError, RunError
 from .files import atomic_output
-from .solvers import SOLVERS
 IMPLICIT = {"Radau", "BDF", "LSODA", "GL4"}
 _STAGES = {"RK45": 6, "RK23": 3, "DOP853": 12}
 
@@ -204,13 +203,6 @@ def _seconds(t: float) -> str:
     return f"{t / scale:.4g} {unit}"
 
 
-def names_list(names, most: int = 8) -> str:
-    """``a, b, c`` (for a short repr) — at most ``most`` names, then ``… (n more)``."""
-    names = list(names)
-    more = f", … ({len(names) - most} more)" if len(names) > most else ""
-    return ", ".join(names[:most]) + more
-
-
 class _Progress:
     def __init__(self, t_end, enabled):
         self.t_end, self.enabled, self.last, self.t = t_end, enabled, 0.0, 0.0
@@ -289,10 +281,45 @@ class Stiffness:
         return bool(self.steps_stability > self.steps_accuracy and self.ratio >= MIN_STIFFNESS_RATIO)
 
 
-@functools.lru_cache(maxsize=None)
+def __getattr__(name: str):
+    """``SOLVERS`` (:data:`multipole.solvers.SOLVERS`), imported when first asked for: scipy's
+    integrators (with scipy.optimize, sparse, interpolate, ...) are not loaded by a run on a compiled
+    backend, which does not use them (docs/performance.md, "A new process on the numba backend")."""
+    if name == "SOLVERS":
+        from .solvers import SOLVERS
+        return SOLVERS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _brentq(*args, **kwargs) -> float:
+    """scipy's Brent's method (``scipy.optimize.brentq``), imported on the first crossing located."""
+    from scipy.optimize import brentq
+    return brentq(*args, **kwargs)
+
+
+#: stability polynomials (highest power first) of ``auto``'s explicit candidates, so that ``auto``
+#: on a compiled backend needs no scipy integrator: ``1/k!`` up to the method's order, then the
+#: tableau's own terms (Dormand–Prince 5(4): z⁶/600; DOP853: z⁹ … z¹², from scipy's tableau by
+#: :func:`_tableau_polynomial`, which ``tests/test_warm_imports.py`` checks them against)
+_STABILITY_POLYNOMIALS = {
+    "RK45": (1 / 600, *(1 / math.factorial(k) for k in range(5, -1, -1))),
+    "DOP853": (3.613324578128244e-10, 1.494736485459155e-08, 2.3413451082097813e-07, 2.6916922001690827e-06,
+               *(1 / math.factorial(k) for k in range(8, -1, -1))),
+}
+
+
 def _stability_polynomial(method: str) -> np.ndarray:
-    """Coefficients (highest power first) of ``R(z) = 1 + z bᵀ(I - zA)⁻¹·1`` of an explicit tableau
-    (``A`` strictly lower triangular, so ``R(z) = 1 + Σ_k z^(k+1) bᵀA^k·1``)."""
+    """Coefficients (highest power first) of the stability function ``R(z)`` of ``method``:
+    :data:`_STABILITY_POLYNOMIALS`, else :func:`_tableau_polynomial`."""
+    known = _STABILITY_POLYNOMIALS.get(method)
+    return np.array(known) if known is not None else _tableau_polynomial(method)
+
+
+@functools.lru_cache(maxsize=None)
+def _tableau_polynomial(method: str) -> np.ndarray:
+    """Coefficients (highest power first) of ``R(z) = 1 + z bᵀ(I - zA)⁻¹·1`` of scipy's explicit
+    tableau of ``method`` (``A`` strictly lower triangular, so ``R(z) = 1 + Σ_k z^(k+1) bᵀA^k·1``)."""
+    from .solvers import SOLVERS
     cls = SOLVERS[method]
     s = cls.n_stages
     A = np.zeros((s, s))
@@ -676,7 +703,7 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
             name, code = found
             if code is None:
                 where = f"{_FUNCTIONS.get(frame.f_code.co_name, 'the model')} near {name}"
-            elif code.startswith("newton("):            # the loop's unknown, not the solver call
+            elif re.match(r"_?newton\w*\(", code):     # the loop's unknown, not the solver call
                 where = f"the algebraic loop for {name}"
             else:
                 where = f"{name} = {code if len(code) <= 80 else code[:77] + '...'}"
@@ -733,7 +760,12 @@ class ScipyIntegrator:
     the others, checked at :data:`PROBES` points of every step."""
 
     name = "numpy"
-    solvers = tuple(SOLVERS)
+
+    @property
+    def solvers(self) -> tuple:
+        """The names of :data:`multipole.solvers.SOLVERS` (imported when asked for)."""
+        from .solvers import SOLVERS
+        return tuple(SOLVERS)
 
     def method(self, solver: str, auto: tuple | None) -> tuple[str, str]:
         """``(method, reason)`` for the requested ``solver``; ``auto``: what :func:`choose_solver` said."""
@@ -741,6 +773,7 @@ class ScipyIntegrator:
 
     def integrate(self, model, solver, t_grid, x, schedule, t_sides, t_end, rtol, atol, max_step, bar) -> Run:
         """The states on ``t_grid`` from ``x`` at t = 0 (see :class:`Run`)."""
+        from .solvers import SOLVERS
         cls = SOLVERS[solver]
         n = len(x)
         model.reset_stats()
@@ -1046,7 +1079,7 @@ def time_switch_schedule(g, time_only, rate, t_end, texts=None, roots=None) -> t
             seq = np.concatenate(([last[j]], seq))
             t_seq = np.concatenate(([t_last[j]], t_seq))
             for i in np.nonzero(seq[1:] != seq[:-1])[0]:
-                tc = brentq(lambda tt: np.asarray(g(tt), dtype=float)[k], t_seq[i], t_seq[i + 1],
+                tc = _brentq(lambda tt: np.asarray(g(tt), dtype=float)[k], t_seq[i], t_seq[i + 1],
                             xtol=1e-14 * max(1.0, t_end), rtol=4 * np.finfo(float).eps)
                 if tc < t_end:
                     out.append((float(tc), int(k), float(seq[i + 1])))
@@ -1097,7 +1130,7 @@ def _rejecting_unsolvable_loops(model):
     A failure at an accepted state still ends the run, with the Newton message."""
     failures: list = []
     base = model.rhs_in_mode if model.n_switches else model.rhs
-    if "newton(" not in getattr(model, "source", ""):
+    if not re.search(r"\b_?newton\w*\(", getattr(model, "source", "")):     # no Newton loop
         return base, failures
 
     def rhs(t, x):
@@ -1149,7 +1182,7 @@ def _root(model, dense, k, t0, t1):
         return model.switches(tt, dense(tt))[k]
     xtol = 1e-14 * max(1.0, abs(t1))
     try:
-        root = brentq(g, t0, t1, xtol=xtol, rtol=4 * np.finfo(float).eps)
+        root = _brentq(g, t0, t1, xtol=xtol, rtol=4 * np.finfo(float).eps)
     except ValueError:
         return t1
     new_side, nudge = np.sign(g(t1)), xtol

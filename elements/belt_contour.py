@@ -44,8 +44,6 @@ from pathlib import Path
 
 import numpy as np
 import sympy as sp
-from scipy import optimize
-from scipy.interpolate import CubicSpline
 
 from multipole import Diagnostic, ModelError, Param, Quantity, element, register_check
 
@@ -130,6 +128,7 @@ class Contour:
                        f"{math.degrees(gaps[:-1].max()):.3g} deg)",
                        "a roll's contour goes once round its axis: give the whole turn (an engaged arc "
                        "from a synthesis needs a convex closing part)")
+        from scipy.interpolate import CubicSpline     # here: a scene without contours does not load scipy
         self.theta, self.r = th, r
         self.spline = CubicSpline(np.append(th, th[0] + TWO_PI), np.append(r, r[0]), bc_type="periodic")
         self._check_convex()
@@ -172,6 +171,7 @@ class Contour:
         if th[-1] - th[0] >= TWO_PI:
             raise _err("bad_contour", f"{source}: an arc spans less than a turn, this one "
                        f"{th[-1] - th[0]:.6g} rad", "give the engaged arc as the synthesis wrote it")
+        from scipy.interpolate import CubicSpline
         arc = CubicSpline(th, rr)
         d1, d2 = arc(th, 1), arc(th, 2)
         den = rr * rr + 2 * d1 * d1 - rr * d2
@@ -475,6 +475,7 @@ def close_arc(nu, p, n: int, source: str = "arc", n_basis: int = 8) -> Closing:
     q0, dq0, ddq0 = values(base2, sg)
     eps = 0.5 * min(Da[0], Db[0])                                       # the margin asked of p and p + p''
     A = np.vstack([np.c_[-Bv.T, Bv.T], np.c_[-(Bv + Bpp).T, (Bv + Bpp).T]])
+    from scipy import optimize
     res = optimize.linprog(np.ones(2 * n_basis), A_ub=A, b_ub=np.r_[q0 - eps, q0 + ddq0 - eps],
                            bounds=[(0, None)] * (2 * n_basis), method="highs")
     if not res.success:
@@ -559,11 +560,15 @@ def _read_rows(path) -> tuple[np.ndarray, np.ndarray, list]:
 def write_table(path, theta, r, comment: str = "") -> None:
     """Write a contour table in the format :func:`read_table` reads (17 significant digits)."""
     with open(path, "w", encoding="utf-8") as fh:
-        for line in comment.splitlines():
-            fh.write(f"# {line}\n")
-        fh.write("theta [rad], r [m]\n")
-        for t, v in zip(theta, r):
-            fh.write(f"{float(t)!r}, {float(v)!r}\n")
+        fh.write(table_text(theta, r, comment))
+
+
+def table_text(theta, r, comment: str = "") -> str:
+    """The text of a contour table (:func:`write_table`): ``#`` comment lines, the header, one
+    ``theta [rad], r [m]`` row per point written with 17 significant digits (read back exactly)."""
+    lines = [f"# {line}" for line in comment.splitlines()] + ["theta [rad], r [m]"]
+    lines += [f"{float(t)!r}, {float(v)!r}" for t, v in zip(theta, r)]
+    return "\n".join(lines) + "\n"
 
 
 def as_contour(value, arc: bool = False) -> Contour:

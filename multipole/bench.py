@@ -23,7 +23,9 @@ Hand-written models are found through the entry point group ``multipole.hand_mod
 is a callable ``f(scene) -> HandModel | None``; the first answer that is not ``None`` is used.
 Without files, the bench runs the scenes offered through the entry point group
 ``multipole.bench_scenes`` (:func:`default_scenes`), so an installed package finds them without a
-source checkout.  The kernel knows no element library or fixture package by name.
+source checkout; a scene that reads data files (contour tables) comes with their texts and is
+loaded from a private temporary folder holding them.  The kernel knows no element library or
+fixture package by name.
 
 Reference of a scene: the ``reference`` mapping of its netlist::
 
@@ -34,6 +36,7 @@ Reference of a scene: the ``reference`` mapping of its netlist::
       energy: "0.5*J*flywheel.omega**2 + ..."  # optional: a conserved quantity of outputs and parameters
       t_end: 2.0                  # optional: horizon of the bench (default: simulate.t_end)
       hand_model: drive_train     # optional: the hand-written model the entry points pair with the scene
+      no_hand_model: "why not"    # optional, instead: why the scene has none (no equal-error rows then)
 
 ``closed_form`` formulas go through :func:`multipole.expressions.parse_expression` (the netlist
 whitelist; never ``eval``).  ``tight`` (and scenes without a reference) use the solution at
@@ -157,13 +160,22 @@ def _compile(text, scene: Scene, outputs, what: str):
 
 def reference_spec(scene: Scene) -> dict:
     """The scene's ``reference`` mapping, checked (kind, output, expression, energy, t_end; ``hand_model``
-    names the hand-written model the ``multipole.hand_models`` entry points pair with the scene)."""
+    names the hand-written model the ``multipole.hand_models`` entry points pair with the scene,
+    ``no_hand_model`` says in words why the scene has none)."""
     spec = dict(scene.reference or {"kind": "tight"})
-    allowed = {"kind", "output", "expression", "energy", "t_end", "hand_model"}
+    allowed = {"kind", "output", "expression", "energy", "t_end", "hand_model", "no_hand_model"}
     unknown = set(spec) - allowed
     if unknown:
         raise MultipoleError("bad_reference", f"{scene.path}: unknown reference key {sorted(unknown)[0]!r}",
                              f"allowed: {', '.join(sorted(allowed))}")
+    if "no_hand_model" in spec:
+        why = spec["no_hand_model"]
+        if not isinstance(why, str) or not why.strip():
+            raise MultipoleError("bad_reference", f"{scene.path}: no_hand_model must say why the scene has no "
+                                 "hand-written model", "give the reason as text")
+        if "hand_model" in spec:
+            raise MultipoleError("bad_reference", f"{scene.path}: a reference names a hand_model or says why it "
+                                 "has none (no_hand_model), not both", "keep one of the two keys")
     kind = spec.get("kind", "tight")
     if kind not in ("closed_form", "tight"):
         raise MultipoleError("bad_reference", f"{scene.path}: reference kind must be closed_form or tight, "
@@ -440,6 +452,7 @@ class SceneReport:
     compile_s: float = math.nan
     stiffness: str = ""
     n_states: int = 0
+    no_hand: str = ""                  # why the scene has no hand-written model (``reference: {no_hand_model}``)
     skipped: str = ""
     grid: np.ndarray | None = None     # output grid of the runs [s]
     equal: list = field(default_factory=list)    # rows of equal_error(), every compiled backend
@@ -466,17 +479,49 @@ class _Bar:
 
 def default_scenes() -> list[Scene]:
     """The bench's scenes when no files are given, loaded: every scene offered by the callables
-    registered in the entry point group ``multipole.bench_scenes`` (each returns ``(name, yaml_text)``
-    pairs; a scene is labelled ``ENTRY:name`` in messages) that is tagged ``bench: true`` and
+    registered in the entry point group ``multipole.bench_scenes`` that is tagged ``bench: true`` and
     well-posed by declaration (no ``expect_check``).  Found through the installed package's metadata,
-    so the same with or without a source checkout."""
+    so the same with or without a source checkout.
+
+    A provider returns ``(name, yaml_text)`` pairs (the scene is labelled ``ENTRY:name`` in messages)
+    or ``(name, yaml_text, {file name: text})`` triples for a scene that reads data files (contour
+    tables): a netlist reads those only from its own folder, so the bench writes the scene and its
+    files into a private temporary folder (removed when the process ends) and loads it from there.
+    """
     out = []
     for entry, provider in _registered("multipole.bench_scenes"):
-        for name, text in provider():
-            sc = loads(text, f"{entry}:{name}")
+        for name, text, *files in provider():
+            if files and files[0]:
+                sc = loads(text, str(_scene_folder(entry, name, text, files[0])))
+            else:
+                sc = loads(text, f"{entry}:{name}")
             if sc.bench and not sc.expect_check:
                 out.append(sc)
     return out
+
+
+_SCENE_DIRS: list = []          # the temporary folders of default scenes with data files (kept while the process runs)
+
+
+def _scene_folder(entry: str, name: str, text: str, files: dict) -> Path:
+    """Write a default scene ``name`` of the provider ``entry`` and its data files ``{file name: text}``
+    (names relative to the scene's folder) into a private temporary folder; the scene file's path."""
+    import tempfile
+    if not _SCENE_DIRS:
+        _SCENE_DIRS.append(tempfile.TemporaryDirectory(prefix="multipole-bench-"))
+    root = Path(_SCENE_DIRS[0].name) / entry
+    path = root / name
+    for rel in [name, *files]:
+        if Path(rel).is_absolute() or ".." in Path(rel).parts or not str(rel).strip():
+            raise MultipoleError("bad_bench_scene", f"bench scene {entry}:{name}: file name {rel!r} leaves the "
+                                 "scene's folder", "name data files relative to the scene, below its folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    for rel, data in files.items():
+        target = path.parent / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(data, encoding="utf-8")
+    return path
 
 
 def _sweep(rep: SceneReport, backend: str, solvers, tolerances, ratio: float, budget, lam, bar, attempt) -> None:
@@ -536,6 +581,7 @@ def bench_scene(scene: Scene, solvers, tolerances, repeats, backends, budget, ba
     rep.n_states = len(model.x0)
     ref = build_reference(scene, model)
     rep.reference = ref
+    rep.no_hand = reference_spec(scene).get("no_hand_model", "")
     rep.stiffness = choose_solver(model, ref.t_end, 1e-6)[1].replace("|lambda|max*t_end", "λmax·t_end")
 
     def auto_method(rtol):
@@ -996,7 +1042,10 @@ def summary(reports, quick: bool) -> str:
                   f"- reference: {ref.note}; compared output `{ref.output}`; estimated error of the reference "
                   f"{ref.error:.2g}" if ref.kind == "tight" else
                   f"- reference: closed form of `{ref.output}` (exact up to round-off)",
-                  f"- stiffness: {rep.stiffness}", "", recommendation(rep), "",
+                  f"- stiffness: {rep.stiffness}"]
+        if rep.no_hand:
+            lines.append(f"- no hand-written model (so no equal-error rows): {' '.join(rep.no_hand.split())}")
+        lines += ["", recommendation(rep), "",
                   "| solver | rtol | status | err_max | err_final | energy drift | wall [ms] | nfev | njev | nlu | "
                   "steps | rejected |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rep.runs:

@@ -36,6 +36,71 @@ from . import HandModel
 HALF_PI = math.pi / 2
 
 
+# -------------------------------------------------------------------------------------------------
+# design of the pitch curves: the code that writes the scene's two contour tables (for
+# diagrams/belts/ through diagrams/belts/toothed_belt_design.py, and for the default bench set)
+
+A = 0.8                    #: centre distance [m]
+E = 0.2                    #: ratio fluctuation: i_max/i_min = (1 + E)/(1 - E) = 1.5
+C = 2.0 / math.sqrt(1 - E * E)
+Q = math.sqrt((1 - E) / (1 + E))
+R2 = 0.16                  #: mean lever arm of wheel 2 [m]
+E2 = 0.04                  #: lobe depth of wheel 2 (wheel 1 takes the rest of the ratio's swing)
+N = 1440                   #: table rows
+#: the contour tables the scene names (``contour:`` of wheel1 and wheel2), beside the netlist
+TABLE_FILES = ("toothed_belt_wheel1.csv", "toothed_belt_wheel2.csv")
+
+
+def ratio(phi1):
+    """Prescribed ratio i = phi1'/phi2' of the drive angle ``phi1`` [rad]."""
+    return C * (1 + E * np.cos(2 * phi1))
+
+
+def phi2_of(phi1):
+    """Wheel 2's angle [rad] for wheel 1's (closed-form quadrature of dphi2 = dphi1/i)."""
+    phi1 = np.asarray(phi1, dtype=float)
+    base = np.arctan2(Q * np.sin(phi1), np.cos(phi1))
+    return 0.5 * (base + 2 * math.pi * np.round((phi1 - base) / (2 * math.pi)))
+
+
+def wheel2_support(nu):
+    """p2(nu) [m] and dp2/dnu: R2 (1 + E2 cos 4 nu), four gentle lobes."""
+    return R2 * (1 + E2 * np.cos(4 * nu)), -4 * R2 * E2 * np.sin(4 * nu)
+
+
+def wheel1_support(nu):
+    """p1(nu) [m] and dp1/dnu from the rolling condition p1(pi/2 - phi1) = p2(pi/2 - phi2(phi1))/i(phi1)."""
+    phi1 = math.pi / 2 - np.asarray(nu, dtype=float)
+    i = ratio(phi1)
+    p2, dp2 = wheel2_support(math.pi / 2 - phi2_of(phi1))
+    di = -2 * C * E * np.sin(2 * phi1)
+    dp1_dphi1 = (-dp2 / i * i - p2 * di) / i ** 2          # dnu2/dphi1 = -1/i
+    return p2 / i, -dp1_dphi1
+
+
+def contour_tables() -> dict:
+    """``{file name: (theta [rad], r [m])}`` of the two pitch curves in polar form (roll frame), by
+    increasing theta, as the scene's tables hold them."""
+    from elements.belt_contour import polar_from_support
+    nu = np.linspace(0.0, 2 * math.pi, N, endpoint=False)
+    out = {}
+    for name, (p, dp) in zip(TABLE_FILES, (wheel1_support(nu), wheel2_support(nu))):
+        th, r = polar_from_support(p, dp, nu)
+        order = np.argsort(th)
+        th, r = th[order], r[order]
+        keep = np.concatenate([[True], np.diff(th) > 1e-12])
+        out[name] = th[keep], r[keep]
+    return out
+
+
+def table_texts() -> dict:
+    """``{file name: text}`` of the two contour tables in the format ``elements.belt_contour`` reads."""
+    from elements.belt_contour import table_text
+    return {name: table_text(th, r, f"toothed belt (Ebert 7.3.2) {name[len('toothed_belt_'):-len('.csv')]} "
+                             "pitch curve, made by diagrams/belts/toothed_belt_design.py")
+            for name, (th, r) in contour_tables().items()}
+
+
 class _Series:
     """p(nu) and S(nu) [m] of a contour from its support function's Fourier coefficients ``a``, ``b``
     (p = a0 + sum a_k cos k nu + b_k sin k nu; S = a0 nu + sum a_k (1/k - k) sin k nu
@@ -124,7 +189,7 @@ def toothed_belt_hand(params: dict, folder: Path, tol: float = 1e-9) -> HandMode
         l1b, l1t, l2t, l2b = ends(phi1, phi2)[4:]
 
         def g_force(delta, rate, lx, k_delta, g_rate, g_lx, F):
-            if not (delta > 0 and cd * rate > -EA * delta):     # slack, or damping would push: F = 0
+            if not (delta > 0 and cd / lx * rate > -EA / lx * delta):   # slack, or damping would push: F = 0
                 return np.zeros(5)
             g_delta = np.zeros(5)
             g_delta[k_delta] = 1.0

@@ -23,8 +23,23 @@ def test_default_scenes_are_the_bench_tagged_ones_including_the_hard_cases():
     # studies that) and the piezo stack (a check of auto's choice, without a hand-written model in the
     # bench's states); not power_split_rigid (untagged) nor differentiated_step (expect_check)
     assert sorted(names) == sorted(["drive_train", "rlc_series", "stiff_drive_train", "mathieu", "stick_slip",
-                                    "slack_rope", "slider_crank", "two_mass_oscillator", "nonlinear_loop"])
-    assert {sc.path for sc in scenes} >= {"basic:drive_train.yaml", "basic:hard/mathieu.yaml"}
+                                    "slack_rope", "slider_crank", "two_mass_oscillator", "nonlinear_loop",
+                                    "toothed_belt", "compressor"])
+    assert {sc.path for sc in scenes} >= {"basic:drive_train.yaml", "basic:hard/mathieu.yaml", "belts:compressor.yaml"}
+
+
+def test_the_toothed_belt_of_the_default_set_reads_its_tables_from_a_private_folder_outside_the_checkout():
+    from multipole.bench import hand_model
+    belt = next(sc for sc in default_scenes() if sc.name == "toothed_belt")
+    folder = Path(belt.path).parent
+    assert not folder.resolve().is_relative_to(ROOT)                   # an installed package has no diagrams/
+    for name in ("toothed_belt_wheel1.csv", "toothed_belt_wheel2.csv"):
+        assert (folder / name).read_text(encoding="utf-8") == (ROOT / "diagrams" / "belts" / name).read_text(
+            encoding="utf-8")
+    # the scene names them relative to itself (the netlist rule: data files lie in the netlist's folder)
+    assert [belt.element_values[w]["contour"] for w in ("wheel1", "wheel2")] == ["toothed_belt_wheel1.csv",
+                                                                                "toothed_belt_wheel2.csv"]
+    assert hand_model(belt) is not None                    # which reads them beside the scene too
 
 
 def test_default_scenes_come_through_the_entry_point_group_not_the_checkout(monkeypatch):
@@ -44,11 +59,56 @@ def test_default_scenes_come_through_the_entry_point_group_not_the_checkout(monk
 
     tagged = S.two_mass_oscillator(periods=1, name="tagged")
     untagged = S.two_mass_oscillator(periods=1, name="untagged", bench=False)
+    data = S.two_mass_oscillator(periods=1, name="with_data")
     groups = {"multipole.bench_scenes": [Entry("mine", lambda: [("a.yaml", tagged), ("b.yaml", untagged)]),
-                                         Entry("gone", None)]}
+                                         Entry("gone", None),
+                                         Entry("files", lambda: [("sub/c.yaml", data, {"t.csv": "1, 2\n",
+                                                                                      "d/u.csv": "3\n"})])]}
     monkeypatch.setattr(bench, "entry_points", lambda group: groups.get(group, []))
     scenes = bench.default_scenes()
-    assert [(sc.name, sc.path) for sc in scenes] == [("tagged", "mine:a.yaml")]
+    assert [sc.name for sc in scenes] == ["tagged", "with_data"]
+    assert scenes[0].path == "mine:a.yaml"
+    path = Path(scenes[1].path)                  # a scene with data files: loaded from the folder holding them
+    assert path.parts[-3:] == ("files", "sub", "c.yaml") and path.read_text(encoding="utf-8") == data
+    assert (path.parent / "t.csv").read_text(encoding="utf-8") == "1, 2\n"
+    assert (path.parent / "d" / "u.csv").read_text(encoding="utf-8") == "3\n"
+
+
+@pytest.mark.parametrize("name, files", [("../c.yaml", {"t.csv": ""}), ("c.yaml", {"../t.csv": ""}),
+                                         ("c.yaml", {"/tmp/t.csv": ""})])
+def test_a_provider_cannot_place_files_outside_the_scene_folder(monkeypatch, name, files):
+    import multipole.bench as bench
+
+    class Entry:
+        name = "bad"
+
+        def load(self):
+            return lambda: [(name, S.two_mass_oscillator(periods=1), files)]
+    monkeypatch.setattr(bench, "entry_points", lambda group: [Entry()])
+    with pytest.raises(MultipoleError) as err:
+        bench.default_scenes()
+    assert err.value.code == "bad_bench_scene"
+
+
+def test_the_belt_scenes_of_the_default_set_are_the_files_of_diagrams_belts():
+    """The package's scene texts are diagrams/belts' files, and its tables are written by the code
+    that wrote diagrams/belts' tables: the same numbers to the 17 digits written (libm may differ by
+    an ulp or two on another machine; measured here: the same bytes)."""
+    from multipole_models import belts
+    from multipole_models.toothed_belt import table_texts
+    for name, text in belts.SCENES.items():
+        assert text == (ROOT / "diagrams" / "belts" / name).read_text(encoding="utf-8"), name
+    for name, text in table_texts().items():
+        ours = _table_numbers(text)
+        theirs = _table_numbers((ROOT / "diagrams" / "belts" / name).read_text(encoding="utf-8"))
+        assert ours.shape == theirs.shape and ours.shape[0] > 1000, name
+        np.testing.assert_allclose(ours, theirs, rtol=1e-14, atol=0, err_msg=name)
+
+
+def _table_numbers(text: str) -> np.ndarray:
+    """The (theta, r) rows of a contour table's text."""
+    rows = [line.split(",") for line in text.splitlines() if line and line[0] not in "#t"]
+    return np.array([[float(a), float(b)] for a, b in rows])
 
 
 def _with_reference(ref: str) -> str:
@@ -62,6 +122,9 @@ def _with_reference(ref: str) -> str:
     ("reference: {kind: closed_form, output: m1.v}", "bad_reference"),
     ("reference: {kind: tight, output: nowhere.v}", "bad_reference"),
     ("reference: {kind: tight, tolerance: 3}", "bad_reference"),
+    ("reference: {kind: tight, no_hand_model: ' '}", "bad_reference"),
+    ("reference: {kind: tight, no_hand_model: 3}", "bad_reference"),
+    ("reference: {kind: tight, hand_model: two_mass_oscillator, no_hand_model: a reason}", "bad_reference"),
 ])
 def test_bad_reference_mappings_are_refused(ref, code):
     with pytest.raises(MultipoleError) as err:

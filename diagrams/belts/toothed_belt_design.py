@@ -25,54 +25,16 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
 
-from elements.belt_contour import Contour, polar_from_support, read_table, write_table  # noqa: E402
-
-A = 0.8                    #: centre distance [m]
-E = 0.2                    #: ratio fluctuation: i_max/i_min = (1 + E)/(1 - E) = 1.5
-C = 2.0 / math.sqrt(1 - E * E)
-Q = math.sqrt((1 - E) / (1 + E))
-R2 = 0.16                  #: mean lever arm of wheel 2 [m]
-E2 = 0.04                  #: lobe depth of wheel 2 (wheel 1 takes the rest of the ratio's swing)
-N = 1440                   #: table rows
-
-
-def ratio(phi1):
-    """Prescribed ratio i = phi1'/phi2'."""
-    return C * (1 + E * np.cos(2 * phi1))
-
-
-def phi2_of(phi1):
-    """Wheel 2's angle [rad] for wheel 1's (closed-form quadrature of dphi2 = dphi1/i)."""
-    phi1 = np.asarray(phi1, dtype=float)
-    base = np.arctan2(Q * np.sin(phi1), np.cos(phi1))
-    return 0.5 * (base + 2 * math.pi * np.round((phi1 - base) / (2 * math.pi)))
-
-
-def wheel2_support(nu):
-    """p2(nu) [m] and dp2/dnu: R2 (1 + E2 cos 4 nu), four gentle lobes."""
-    return R2 * (1 + E2 * np.cos(4 * nu)), -4 * R2 * E2 * np.sin(4 * nu)
-
-
-def wheel1_support(nu):
-    """p1(nu) [m] and dp1/dnu from the rolling condition p1(pi/2 - phi1) = p2(pi/2 - phi2(phi1))/i(phi1)."""
-    phi1 = math.pi / 2 - np.asarray(nu, dtype=float)
-    i = ratio(phi1)
-    p2, dp2 = wheel2_support(math.pi / 2 - phi2_of(phi1))
-    di = -2 * C * E * np.sin(2 * phi1)
-    dp1_dphi1 = (-dp2 / i * i - p2 * di) / i ** 2          # dnu2/dphi1 = -1/i
-    return p2 / i, -dp1_dphi1
+from elements.belt_contour import Contour, read_table  # noqa: E402
+# the design (ratio, pitch curves, tables) lives in the package, so that the default bench set
+# (multipole.bench_scenes) writes the same tables an installed package has no diagrams/ to read from
+from multipole_models.toothed_belt import A, phi2_of, ratio, table_texts  # noqa: E402,F401
 
 
 def tables(out=HERE):
     """Write toothed_belt_wheel1.csv and toothed_belt_wheel2.csv (polar, roll frame)."""
-    nu = np.linspace(0.0, 2 * math.pi, N, endpoint=False)
-    for name, (n_, p, dp) in (("wheel1", (nu, *wheel1_support(nu))), ("wheel2", (nu, *wheel2_support(nu)))):
-        th, r = polar_from_support(p, dp, n_)
-        order = np.argsort(th)
-        th, r = th[order], r[order]
-        keep = np.concatenate([[True], np.diff(th) > 1e-12])
-        write_table(out / f"toothed_belt_{name}.csv", th[keep], r[keep],
-                    f"toothed belt (Ebert 7.3.2) {name} pitch curve, made by diagrams/belts/toothed_belt_design.py")
+    for name, text in table_texts().items():
+        (out / name).write_text(text, encoding="utf-8")
 
 
 def open_belt_length(c1: Contour, c2: Contour, phi1, phi2):

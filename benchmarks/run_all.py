@@ -363,14 +363,15 @@ def main(argv=None):
     old = path.read_text(encoding="utf-8") if path.exists() else ""
     DATA.mkdir(parents=True, exist_ok=True)
     FIGS.mkdir(parents=True, exist_ok=True)
-    print("== multipole bench", flush=True)
+    print("== multipole bench", _since(start), flush=True)
     reports = run_bench(None, DATA, quick=args.quick, quiet=True, figures_dir=FIGS)
-    print("== generated right-hand side of the chains (section 1; section 3 is chain_scaling.py's)", flush=True)
+    print("== generated right-hand side of the chains (section 1; section 3 is chain_scaling.py's)", _since(start),
+          flush=True)
     chain_scaling.measure(10)                      # untimed warm-up (imports)
     chains = [chain_scaling.measure(n) for n in ((10, 100) if args.quick else (10, 100, 1000))]
-    print("== long horizon", flush=True)
+    print("== long horizon", _since(start), flush=True)
     long_rows = long_horizon.run(100 if args.quick else 1e4, 1e-6, DATA, FIGS)
-    print("== stick-slip regularisation", flush=True)
+    print("== stick-slip regularisation", _since(start), flush=True)
     stick_rows = stick_slip_regularisation.run(DATA)
     minutes = (time.perf_counter() - start) / 60
     head = ["# Performance: speed against error", "",
@@ -452,6 +453,12 @@ def kept_sections(old: str) -> list:
         if keep:
             kept.append(line)
     return kept
+
+
+def _since(start: float) -> str:
+    """The time since ``start`` [s of time.perf_counter()] and the load, for the progress lines."""
+    import os
+    return f"(at {(time.perf_counter() - start) / 60:.1f} min, load {os.getloadavg()[0]:.1f})"
 
 
 def _cores() -> int:

@@ -97,7 +97,8 @@ def test_the_belt_scenes_of_the_default_set_are_the_files_of_diagrams_belts():
     from multipole_models import belts
     from multipole_models.toothed_belt import table_texts
     for name, text in belts.SCENES.items():
-        assert text == (ROOT / "diagrams" / "belts" / name).read_text(encoding="utf-8"), name
+        assert text == (ROOT / "diagrams" / "belts" / name).read_text(encoding="utf-8"), (
+            f"diagrams/belts/{name} changed: copy its text into multipole_models/belts.py (the default bench set)")
     for name, text in table_texts().items():
         ours = _table_numbers(text)
         theirs = _table_numbers((ROOT / "diagrams" / "belts" / name).read_text(encoding="utf-8"))

@@ -284,9 +284,9 @@ def validate_simulate_options(options: dict, where: str = "", lines: dict | None
     if t_end is not None and max_step is not None and t_end / max_step > MAX_STEPS:
         raise err("bad_option", "max_step", f"t_end/max_step = {t_end / max_step:.3g} steps (limit {MAX_STEPS:.0e})",
                   "choose a larger max_step")
-    if "solver" in out:
+    if out.get("solver", "auto") != "auto":     # scipy's integrators only for a scene that names one
         from .solvers import SOLVERS
-        if out["solver"] != "auto" and out["solver"] not in SOLVERS:
+        if out["solver"] not in SOLVERS:
             raise err("unknown_solver", "solver", f"unknown solver {out['solver']!r}",
                       f"use auto or one of {', '.join(SOLVERS)}")
     return out

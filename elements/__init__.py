@@ -9,4 +9,4 @@ defaults of its own) and the quantities (``"unit: meaning"``; the builder's ``Qu
 carry only their expression, or the unit they were built in when it depends on the domain).
 ``tests/test_catalogue.py`` builds every type and fails when a declaration and the build differ.
 """
-from . import basic, belt, belt_checks, belt_contour, belt_friction, belt_planar, belt_spans, gears, linkage, linkage_guides, linkage_slide, motor, piezo, planetary  # noqa: F401  (each registers its elements)
+from . import basic, belt, belt_checks, belt_contour, belt_friction, belt_planar, belt_planar_curve, belt_spans, gears, linkage, linkage_guides, linkage_slide, motor, piezo, planetary  # noqa: F401  (each registers its elements)

@@ -138,15 +138,16 @@ class SpanEnd:
         return cls(lambda nu: r, lambda nu: sp.Integer(0), _S(f"s{k}"), 0, r)
 
 
-def planar_span(kind: str, ends: tuple, params: dict, reads=None, extra_ports=None) -> Network:
+def planar_span(kind: str, ends: tuple, params: dict, reads=None) -> Network:
     """The elastic span on the common tangent of the contours at its two ends (:class:`SpanEnd`).
 
     Residual of the closure on the inclination g: n . d + s1 p1(nu1) + s2 p2(nu2) = 0 with the contact
     normals nu1 = g - s1 pi/2 - a1 and nu2 = g + s2 pi/2 - a2 in the contours' frames (a: their angles);
     span length l_B = t . d - s1 p1' - s2 p2'; contact points K1 = C1 - s1 p1 n + s1 p1' t,
     K2 = C2 + s2 p2 n - s2 p2' t; the rate of g is (n . d' - s1 p1' a1' - s2 p2' a2')/l_B (the contours'
-    angles enter only where p' != 0: ``extra_ports`` maps ``p1.phi``/``p2.phi`` to the MTF columns
-    that carry a1', a2').  A circle (p = r, p' = 0) gives the tangent of :func:`tangent` exactly."""
+    angles a_i, read by ``reads``, enter only at an end whose p' is not 0: its port ``p<i>.phi`` is then an
+    MTF column carrying a_i', with no torque).  A circle (p = r, p' = 0) gives the tangent of
+    :func:`tangent` exactly, and the element of before (planar_band).  ``params``: the element's parameters."""
     e1, e2 = ends
     xa, ya, xb, yb, g = _S("xa"), _S("ya"), _S("xb"), _S("yb"), _S("gam")
     dx, dy = xb - xa, yb - ya
@@ -164,15 +165,21 @@ def planar_span(kind: str, ends: tuple, params: dict, reads=None, extra_ports=No
     delta = e1.sense * p1 + e2.sense * p2
     c, s = sp.cos(g), sp.sin(g)
     lb = c * dx + s * dy - e1.sense * d1 - e2.sense * d2     # t . (K2 - K1): the span length on the tangent
-    # start value: the tangent of the circles of radius `mean`, then fixed-point steps
-    # g <- atan2(d) + atan2(Delta(g), sqrt(|d|^2 - Delta(g)^2)) (exact at once for circles)
+    # start value: the tangent of the circles of radius `mean` (exact for circles), then Newton steps on
+    # the closure, whose derivative is -l_B: g <- g + (n . d + Delta(g))/l_B(g).  The stretch at t = 0
+    # takes l_B at the last step's start (its expression at the last step's result would grow by the
+    # terms of the series again; docs/belts.md says what that costs in F0)
     lb0, g0, _k1, _k2 = tangent(xa, ya, e1.mean, e1.sense, xb, yb, e2.mean, e2.sense)
     radicand = dx ** 2 + dy ** 2 - (e1.sense * e1.mean + e2.sense * e2.mean) ** 2
-    for _ in range(max(e1.refine, e2.refine)):
-        radicand = dx ** 2 + dy ** 2 - offset(g0) ** 2
-        g0 = sp.atan2(dy, dx) + sp.atan2(offset(g0), sp.sqrt(radicand))
-    if e1.refine or e2.refine:
-        lb0 = lb.xreplace({g: g0})
+    conditions, steps = [], max(e1.refine, e2.refine)
+    if steps:
+        conditions.append((radicand - 1e-10, "the contours leave no room for a tangent of positive length at their "
+                           "mean radii: |C2 - C1| must exceed |s1 p1 + s2 p2|", "m^2"))
+        radicand = dx ** 2 + dy ** 2 - offset(g0) ** 2       # at the circles' tangent
+    for _ in range(steps):
+        at = {g: g0}
+        lb0 = lb.xreplace(at)
+        g0 = g0 + (-sp.sin(g0) * dx + sp.cos(g0) * dy + delta.xreplace(at)) / lb0
     q = _S("delta")
     lx = lb - q
     turning = [k for k, e in ((1, d1), (2, d2)) if not sp.sympify(e).is_zero]
@@ -201,7 +208,7 @@ def planar_span(kind: str, ends: tuple, params: dict, reads=None, extra_ports=No
     closure = Closure(["tap.q"], [-s * dx + c * dy + delta],
                       "the span on the common tangent of the two " + ("circles" if not turning else "contours"),
                       # (10 um)^2: a span of (nearly) zero length has no direction (atan2(0, 0) := 0 is refused)
-                      conditions=[(radicand - 1e-10, "the " + ("circles leave" if not turning else "contours leave")
+                      conditions=conditions + [(radicand - 1e-10, "the " + ("circles leave" if not turning else "contours leave")
                                    + " no room for a tangent of positive length: |C2 - C1| must exceed "
                                    + ("|s1 r1 + s2 r2|" if not turning else "|s1 p1 + s2 p2| (the contours overlap)")
                                    + " (spans shorter than 10 um are refused)", "m^2")],
@@ -316,13 +323,14 @@ def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None, co
     signals = {"rphi": "R.tap.q"} | ({f"dg{k}": f"tap{k}.q" for k in ends} if contact else {})
     if contact:
         # a curve roll hands its own angle to the spans (they read the contour's pose at c.phi)
-        children["H"] = junction_b(["a"] + ([] if _zero(mu) else ["f"]), "rotational")
+        children["H"] = Se(0, "rotational")      # the housing feels no torque (pin friction: below)
         children["D"] = junction_b(["o", "r", "c"], "rotational")
         connections.append(["D.r", "R.drive"])
-        ports |= {"drive": "D.o", "c.phi": "D.c"}
+        ports |= {"drive": "D.o", "c.phi": "D.c", "a.phi": "H.p"}
     if not _zero(mu):
         # pin friction between the roll and its housing, loaded by the span forces on the axis
         children["H"] = junction_b(["a"] + ([] if contact else ["c"]) + ["f"], "rotational")
+        ports["a.phi"] = "H.a"
         children["D"] = junction_b(["o", "r", "f"] + (["c"] if contact else []), "rotational")
         children["F"] = junction_a(["a", "b", "x"], "rotational", [1, -1, -1])
         children["fric"] = R(law=_S("mu") * _S("r_pin") * sp.sqrt(_S("Fcx") ** 2 + _S("Fcy") ** 2) * sp.sign(_S("f")),
@@ -402,32 +410,40 @@ def _planar_roll(kind: str, sides: int, params: dict, mu_c=None, stored=None, co
 _PLANAR_ROLLS = ("planar_roll", "planar_drum")
 
 
-@register_check("planar_band_roll", "error",
-                "a planar_band joined to a planar_roll or planar_drum must be given its radius and wrap sense "
-                "(r1 = r, s1 = w at its e1, -w at its e2) and its p port must be joined to the roll's centre c")
-def planar_band_roll(ctx):
+def span_roll_pairs(ctx, spans: tuple, rolls: tuple):
+    """Each band connection of a span (kind in ``spans``) with a roll (kind in ``rolls``):
+    ``(span, roll, k, j, problems)`` with the span's end k and the roll's port j ("1"|"2") and the
+    problems every planar span shares (wrap sense s_k against the roll's w, p_k not joined to c)."""
     kinds, ports = ctx.flat.elements, ctx.flat.external_ports
     node_of = {p: k for k, node in enumerate(ctx.flat.nodes) for p in node.ports}
     for a, b, data in band_graph(ctx).edges(data=True):
         ends = dict(p.rsplit(".", 1) for p in data["ports"])
-        if kinds.get(a) == "planar_band" and kinds.get(b) in _PLANAR_ROLLS:
+        if kinds.get(a) in spans and kinds.get(b) in rolls:
             span, roll = a, b
-        elif kinds.get(b) == "planar_band" and kinds.get(a) in _PLANAR_ROLLS:
+        elif kinds.get(b) in spans and kinds.get(a) in rolls:
             span, roll = b, a
         else:
             continue
         k, j = ends[span][-1], ends[roll][-1]            # the span's end 1|2, the roll's port 1|2
-        r, w, rk, sk = _value(ctx, roll, "r"), _value(ctx, roll, "w"), _value(ctx, span, f"r{k}"), \
-            _value(ctx, span, f"s{k}")
+        w, sk = _value(ctx, roll, "w"), _value(ctx, span, f"s{k}")
         problems = []
-        if None not in (r, rk) and abs(r - rk) > 1e-12 * max(r, 1e-300):
-            problems.append(f"r{k} = {rk:g} m, the roll's r = {r:g} m")
         if None not in (w, sk) and sk != (w if j == "1" else -w):
             problems.append(f"s{k} = {sk:+g}, the roll's w = {w:+g} at its e{j} asks for {w if j == '1' else -w:+g}")
         centre, end = ports.get(f"{roll}.c.x"), ports.get(f"{span}.p{k}.x")
         if centre and end and node_of.get(centre, "c") != node_of.get(end, "e"):
             problems.append(f"{span}.p{k} is not joined to {roll}.c (the span pulls the roll through its centre "
                             "port: bearing load, pin friction, outputs Fx, Fy)")
+        yield span, roll, k, j, problems
+
+
+@register_check("planar_band_roll", "error",
+                "a planar_band joined to a planar_roll or planar_drum must be given its radius and wrap sense "
+                "(r1 = r, s1 = w at its e1, -w at its e2) and its p port must be joined to the roll's centre c")
+def planar_band_roll(ctx):
+    for span, roll, k, j, problems in span_roll_pairs(ctx, ("planar_band",), _PLANAR_ROLLS):
+        r, rk = _value(ctx, roll, "r"), _value(ctx, span, f"r{k}")
+        if None not in (r, rk) and abs(r - rk) > 1e-12 * max(r, 1e-300):
+            problems.insert(0, f"r{k} = {rk:g} m, the roll's r = {r:g} m")
         if problems:
             yield Diagnostic("planar_band_roll", f"{span}.e{k} runs onto {roll}.e{j}, but " + "; ".join(problems),
                              elements=[span, roll],

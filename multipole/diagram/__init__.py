@@ -11,6 +11,9 @@ The diagram shows the flattened primitives of a scene the way Weber draws multip
 * an **arrow for every port variable** pointing away from the side that computes it, as found by
   the causality analyser (:func:`multipole.pipeline.check`);
 * storage in **derivative causality** drawn dashed in purple (``d/dt`` instead of ``∫``);
+* **position closures** (planar linkages, bands) as green blocks above the lanes ("position
+  closure: Newton on" the states they solve for), with green dash-dotted **position signals** from
+  the states they read and to the transformers whose ratios their states modulate;
 * the elements named in **error diagnostics** drawn in red, with the diagnostic's words below.
 
 Two steps, both public: :func:`layout` turns an :class:`~multipole.causality.Analysis` into a
@@ -26,6 +29,7 @@ stages before it:
 3. :mod:`.blocks`: the block of every item with its label and size, footnotes;
 4. :mod:`.placement`: tracks reserved for wires, then positions of frames, blocks and nodes;
 5. :mod:`.routing`: one arrow per port variable with its route, gyrator links;
+6. :mod:`.positions`: position closures and the position signals of modulated transformers;
 
 and :mod:`.rendering` draws the result.  :mod:`.model` holds the drawing model and the sizes
 and colours the stages share.  Geometry is in drawing units (one unit is :data:`SCALE` inches in
@@ -36,18 +40,18 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..causality import Analysis
-from ..errors import ModelError
 from .blocks import footnote_lines, make_blocks
-from .model import (COLLAPSE_ABOVE, CONFLICT, DERIVATIVE, DRAWN_HEAD, EFFORT, FLOW, MIDDLE_KINDS, ROW_KINDS, SCALE,
-                    Arrow, Block, Diagram, Group)
+from .model import (COLLAPSE_ABOVE, CONFLICT, DERIVATIVE, DRAWN_HEAD, EFFORT, FLOW, MIDDLE_KINDS, POSITION, ROW_KINDS,
+                    SCALE, Arrow, Block, Diagram, Group)
 from .ordering import order
 from .placement import place
+from .positions import positions
 from .rendering import figure, render
 from .routing import route
 from .topology import Topology
 
 
-def _messages(an: Analysis) -> list:
+def _messages(an: Analysis, closures=(), signals=()) -> list:
     lines = []
     for d in an.errors:
         text = f"error[{d.code}] {d.message}"
@@ -59,6 +63,14 @@ def _messages(an: Analysis) -> list:
     for d in an.diagnostics:
         if d.code == "derivative_causality":
             lines.append((DERIVATIVE, f"derivative causality: {d.message}"))
+    for c in closures:
+        text = f"position closure of {c.owner}: Newton's method solves its residuals for {', '.join(c.unknowns)}"
+        if c.reads:
+            text += f", reading {', '.join(c.reads)}"
+        feeds = sorted({s.target.rsplit(':', 1)[0] for s in signals if s.source == c.block})
+        if feeds:
+            text += f"; the solved values modulate {', '.join(feeds)}"
+        lines.append((POSITION, text))
     return lines
 
 
@@ -66,19 +78,10 @@ def layout(analysis: Analysis, types: dict | None = None, title: str = "", subti
     """The drawing model of an analysed scene.
 
     ``types`` maps top-level element names to their type names (``scene.element_types``) for the
-    frame labels.  Every port variable of the flat network gets exactly one :class:`Arrow`.
-
-    Scenes whose elements hand positions through their connections (planar linkages, bands) are
-    refused (``diagram_unsupported``): the layout does not yet draw their position closures and the
-    derivative causality of their bodies correctly, and a wrong diagram would teach the wrong thing;
-    ``multipole draw`` draws their geometry.
+    frame labels.  Every port variable of the flat network gets exactly one :class:`Arrow`; the
+    position closures of the scene get one block each and the states they read or solve for travel
+    as position signals (:mod:`.positions`).
     """
-    flat = analysis.flat
-    if flat.closures or flat.position_providers:
-        raise ModelError("diagram_unsupported", "block diagrams of scenes whose elements hand positions "
-                         "through their connections (planar linkages, bands) are not drawn yet",
-                         "use 'multipole draw FILE -o figure.png' for the mechanism, 'multipole equations' "
-                         "for the derived equations")
     topo = Topology(analysis, types)
     ordering = order(topo)
     blockset = make_blocks(topo, ordering)
@@ -87,12 +90,16 @@ def layout(analysis: Analysis, types: dict | None = None, title: str = "", subti
     blocks, groups = placed.blocks, placed.groups
     ys = [b.y for b in blocks.values()] + [g.y0 for g in groups] + [g.y1 for g in groups]
     ys += [p[1] for a in routed.arrows for p in a.points]
+    closures, signals = positions(topo, ordering, placed, max(ys))
+    ys += [b.y + b.h / 2 for b in blocks.values() if b.row == "p"] + [p[1] for s in signals for p in s.points]
     xs = [p[0] for a in routed.arrows for p in a.points] + [g.x1 for g in groups] + [0.0]
+    xs += [b.x + sgn * b.w / 2 for b in blocks.values() if b.row == "p" for sgn in (-1, 1)]
     extent = (min(xs) - 0.2, max(xs) + 0.3, min(ys) - 0.3, max(ys) + 0.25)
-    return Diagram(title, subtitle, blocks, routed.arrows, groups, _messages(analysis), ordering.n_lanes,
+    return Diagram(title, subtitle, blocks, routed.arrows, groups, _messages(analysis, closures, signals),
+                   ordering.n_lanes,
                    extent, bool(topo.demoted), bool(analysis.errors), _captions(analysis), placed.lane_h,
                    placed.subgroups, footnote_lines(topo, blockset), routed.links,
-                   {f"{ph}:x": gone for ph, (_p, _s, gone) in topo.placeholders.items()})
+                   {f"{ph}:x": gone for ph, (_p, _s, gone) in topo.placeholders.items()}, closures, signals)
 
 
 def _captions(an: Analysis) -> tuple:
@@ -126,5 +133,5 @@ def cmd_diagram(args) -> int:
 
 
 __all__ = ["Arrow", "Block", "Diagram", "Group", "cmd_diagram", "figure", "layout", "render",
-           "COLLAPSE_ABOVE", "CONFLICT", "DERIVATIVE", "DRAWN_HEAD", "EFFORT", "FLOW", "MIDDLE_KINDS", "ROW_KINDS",
-           "SCALE"]
+           "COLLAPSE_ABOVE", "CONFLICT", "DERIVATIVE", "DRAWN_HEAD", "EFFORT", "FLOW", "MIDDLE_KINDS", "POSITION",
+           "ROW_KINDS", "SCALE"]

@@ -334,7 +334,7 @@ class _BlockMaker:
             effort = -1 / base if ea and not eb else -base
             flow_label = self.fit(_short_form(flow), RATIO_CHARS, f"{path}, flows")
             if moving:                      # a modulated transformer: its ratio in a footnote
-                entry = (path, f"{base} = {_short_form(ratio)}")
+                entry = (path, f"{base} = {_expr_text(ratio)}")
                 if entry not in self.footnotes:
                     self.footnotes.append(entry)
                 flow_label += f" [{self.footnotes.index(entry) + 1}]"
@@ -362,7 +362,10 @@ class _BlockMaker:
                 states = {v: sp.Symbol(v.name.rsplit(".", 1)[-1]) for v in k.free_symbols
                           if v not in self.topo.values and v != T}
                 moving = sorted(s.name for s in states.values())
-                return sp.simplify(self.symbolic(k, path).xreplace(states)), moving
+                k = self.symbolic(k, path).xreplace(states)
+                # a modulated ratio (a contour table, a band's geometry) can be large: simplifying
+                # it takes minutes and it is only printed in a footnote
+                return (k if moving else sp.simplify(k)), moving
         return sp.Symbol("k"), []
 
     def node_blocks(self, node, element):

@@ -16,6 +16,7 @@ FLOW = "#1f5fa8"        #: colour of flow signals (Bewegungen)
 EFFORT = "#303030"      #: colour of effort signals (Kräfte)
 CONFLICT = "#d62728"    #: elements named by an error diagnostic, undetermined variables
 DERIVATIVE = "#7b3fa0"  #: storage in derivative causality
+POSITION = "#2e7d32"    #: position closures and the position signals that modulate transformers
 
 #: primitives drawn as one block between the two rows (cross-couplings, sources, taps); any other
 #: one-port kind an element library defines is drawn there too
@@ -42,9 +43,10 @@ class Block:
 
     ``kind``: ``sum`` (Σ), ``dot`` (branching point), ``ratio`` (TF/MTF), ``gyrator``, ``storage``
     (I, C, C-field), ``resistance`` (R), ``source`` (Se, Sf), ``tap``, ``terminal`` (an unconnected
-    port), ``other`` (a one-port kind defined by an element library), ``repeat`` (the placeholder
+    port), ``closure`` (a position closure solved by Newton's method), ``other`` (a one-port kind defined by an element library), ``repeat`` (the placeholder
     of identical sub-elements drawn collapsed).
-    ``row``: ``"f"`` (flow row), ``"e"`` (effort row) or ``"x"`` (between the rows).
+    ``row``: ``"f"`` (flow row), ``"e"`` (effort row), ``"x"`` (between the rows) or ``"p"``
+    (a ``closure``: a position closure, above the lanes).
     ``owner`` is the primitive path or the node name whose equations the block stands for;
     ``element`` the top-level element it belongs to (``""`` for a node joining elements).
     ``identity`` marks blocks that only pass a value on (dots, two-port sums).
@@ -127,6 +129,8 @@ class Diagram:
     footnotes: list = field(default_factory=list)   # full texts of labels too long for their block
     links: list = field(default_factory=list)       # gyrator couplings: (points, colour) flow row <-> effort row
     collapsed: dict = field(default_factory=dict)   # placeholder block id -> hidden sub-element paths
+    closures: list = field(default_factory=list)    # positions.Closure: the drawn position closures
+    signals: list = field(default_factory=list)     # positions.Signal: position signals (closures, modulation)
 
     def arrow_of(self, variable: str) -> Arrow:
         """The arrow of a port variable (``"rotor.j.a.e"``)."""

@@ -11,7 +11,7 @@ import textwrap
 from pathlib import Path
 
 from ..plotting import new_figure
-from .model import CONFLICT, DERIVATIVE, DY, EFFORT, FLOW, SCALE, Diagram
+from .model import CONFLICT, DERIVATIVE, DY, EFFORT, FLOW, POSITION, SCALE, Diagram
 
 
 def figure(diagram: Diagram):
@@ -107,9 +107,27 @@ def figure(diagram: Diagram):
                     arrowprops=dict(arrowstyle="-|>,head_length=0.55,head_width=0.28" if head else "-",
                                     color=colour, lw=1.0, shrinkA=0, shrinkB=0, ls="-" if head else "--"))
 
+    for s in diagram.signals:               # position signals: closures and modulated transformers
+        xs, ys = zip(*s.points)
+        ax.add_line(Line2D(xs, ys, color=POSITION, lw=1.0, ls="-.", zorder=2, gid="signal"))
+        ax.annotate("", xy=s.points[-1], xytext=s.points[-2], zorder=3,
+                    arrowprops=dict(arrowstyle="-|>,head_length=0.5,head_width=0.25", color=POSITION, lw=1.0,
+                                    shrinkA=0, shrinkB=0))
+    for src in {s.source for s in diagram.signals}:
+        mine = [s for s in diagram.signals if s.source == src and s.branch is not None]
+        if mine:                            # branching points where a shared track splits
+            x0 = mine[0].points[0][0]
+            xs = [s.branch[0] for s in mine]
+            lo, hi = min(xs + [x0]), max(xs + [x0])
+            for s in mine:
+                if lo + 1e-6 < s.branch[0] < hi - 1e-6 or abs(s.branch[0] - x0) < 1e-6:
+                    ax.plot([s.branch[0]], [s.branch[1]], "o", ms=4.5, color=POSITION, zorder=5)
+
     for b in diagram.blocks.values():
-        edge = CONFLICT if b.conflict else DERIVATIVE if b.derivative else "#222222"
-        text_colour = CONFLICT if b.conflict else DERIVATIVE if b.derivative else "#111111"
+        edge = CONFLICT if b.conflict else DERIVATIVE if b.derivative else POSITION if b.kind == "closure" \
+            else "#222222"
+        text_colour = CONFLICT if b.conflict else DERIVATIVE if b.derivative else POSITION if b.kind == "closure" \
+            else "#111111"
         if b.kind == "dot" or (b.kind == "sum" and b.bus):
             colour = CONFLICT if b.conflict else (FLOW if b.row == "f" else EFFORT)
             mine = [a for a in diagram.arrows if b.id in (a.source, a.target) and a.drawn and a.points]
@@ -153,6 +171,9 @@ def figure(diagram: Diagram):
         Patch(fc="#f7f0fb", ec=DERIVATIVE, ls="--", lw=1.5,
               label="derivative causality (d/dt): resolved into effective storage"),
     ]
+    if diagram.signals or diagram.closures:
+        handles.append(Line2D([], [], color=POSITION, lw=1.0, ls="-.", marker=">", ms=5,
+                              label="position signal: state read by a closure or modulating a ratio"))
     if diagram.links:
         handles.append(Line2D([], [], color="#555555", lw=1.0, marker=">", ms=5,
                               label="gyrator: effort of one side from the flow of the other"))

@@ -111,7 +111,7 @@ class _Router:
                     continue
                 if n.origin == "termination":
                     other = f"{n.name}:x"
-                elif n.name in self.topo.top_set and len(n.ports) >= 3:
+                elif len(n.ports) >= 3 and f"{n.name}:{row}" in self.blocks:   # its dot and Σ
                     other = f"{n.name}:{row}"
                 else:
                     q = next(p for p in n.ports if p != pp)

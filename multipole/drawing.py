@@ -80,9 +80,11 @@ def _limits(drawn) -> tuple:
     return lo - pad, hi + pad
 
 
-def _draw_frame(ax, drawn, k, shade, labels=True):
-    """The mechanism at sample ``k`` into ``ax`` (``shade`` 0 light … 1 dark)."""
+def _draw_frame(ax, drawn, k, shade) -> list:
+    """The mechanism at sample ``k`` into ``ax`` (``shade`` 0 light … 1 dark); returns its labels
+    as ``(x, y, text)`` for :func:`_place_labels`."""
     colour = (0.1, 0.2, 0.75, 0.2 + 0.8 * shade)
+    labels = []
     for d in drawn:
         xy = d.xy[k]
         if d.style == "slide":
@@ -94,10 +96,50 @@ def _draw_frame(ax, drawn, k, shade, labels=True):
         else:
             ax.plot(xy[:, 0], xy[:, 1], "-o", color=colour, lw=3.0, ms=5, mfc="white", mec=colour, mew=1.5,
                     solid_capstyle="round")
-        if labels:
-            for (x, y), text in zip(xy, d.labels):
-                if text:
-                    ax.annotate(f"{d.owner}.{text}", (x, y), xytext=(5, 5), textcoords="offset points", fontsize=8)
+        labels += [(x, y, f"{d.owner}.{text}") for (x, y), text in zip(xy, d.labels) if text]
+    return labels
+
+
+#: where a label may sit relative to its point [pt], in the order tried: the four corners close by,
+#: then farther out above and below
+LABEL_OFFSETS = [(5, 5), (5, -5), (-5, 5), (-5, -5)] + [(sx * 5, sy * (5 + 9 * k)) for k in (1, 2, 3)
+                                                        for sy in (1, -1) for sx in (1, -1)]
+LABEL_SIZE = 8       #: font size of the labels [pt]
+
+
+def _place_labels(ax, labels) -> None:
+    """Write the labels ``(x, y, text)`` (data coordinates) next to their points, each at the first
+    of :data:`LABEL_OFFSETS` whose box overlaps no label placed before it (else where it overlaps
+    least): labels of points that lie close together are pushed apart instead of printed over each
+    other.  Call it when everything else is drawn (the layout engine has placed the axes)."""
+    ax.figure.draw_without_rendering()
+    ax.apply_aspect()
+    scale = ax.figure.dpi / 72.0                        # pixels per point
+    boxes = []
+
+    def box(px, py, dx, dy, text):
+        w, h = len(text) * 0.6 * LABEL_SIZE * scale, 1.25 * LABEL_SIZE * scale
+        x0 = px + dx * scale - (w if dx < 0 else 0.0)
+        y0 = py + dy * scale - (h if dy < 0 else 0.0)
+        return x0, y0, x0 + w, y0 + h
+
+    def overlap(a, b):
+        return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+
+    for x, y, text in labels:
+        px, py = ax.transData.transform((x, y))
+        best = None
+        for dx, dy in LABEL_OFFSETS:
+            b = box(px, py, dx, dy, text)
+            cost = sum(overlap(b, o) for o in boxes)
+            if best is None or cost < best[0]:
+                best = (cost, dx, dy, b)
+            if cost == 0.0:
+                break
+        _cost, dx, dy, b = best
+        boxes.append(b)
+        ax.annotate(text, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=LABEL_SIZE,
+                    ha="left" if dx > 0 else "right", va="bottom" if dy > 0 else "top")
 
 
 def _frame_pivots(drawn) -> np.ndarray:
@@ -134,14 +176,16 @@ def mechanism_figure(result, drawn, path, at=None, instants=DEFAULT_INSTANTS, ti
         if d.trace:
             ax.plot(d.xy[:, -1, 0], d.xy[:, -1, 1], "-", color="tab:orange", lw=1.2,
                     label=f"path of {d.labels[-1] if d.labels and d.labels[-1] else d.owner} ({d.owner})")
+    labels = []
     for i, k in enumerate(ks):
-        _draw_frame(ax, drawn, k, (i + 1) / len(ks), labels=(i == len(ks) - 1))
+        labels = _draw_frame(ax, drawn, k, (i + 1) / len(ks))     # the last instant's are written
     lo, hi = _limits(drawn)
     _decorate(ax, drawn, lo, hi, _frame_pivots(drawn))
     times = ", ".join(f"{result.t[k]:.3g}" for k in ks)
     ax.set_title((title + "\n" if title else "") + f"at t = {times} s (light to dark)", fontsize=10)
     if any(d.trace for d in drawn):
         fig.legend(loc="outside lower center", fontsize=8, frameon=False)
+    _place_labels(ax, labels)
     save(fig, path)
 
 
@@ -182,9 +226,10 @@ def animation(result, drawn, path, frames=60):
         for d in drawn:
             if d.trace:
                 ax.plot(d.xy[:, -1, 0], d.xy[:, -1, 1], "-", color="tab:orange", lw=1.0)
-        _draw_frame(ax, drawn, k, 1.0)
+        labels = _draw_frame(ax, drawn, k, 1.0)
         _decorate(ax, drawn, lo, hi, pivots)
         ax.set_title(f"t = {result.t[k]:.3f} s", fontsize=9)
+        _place_labels(ax, labels)
         fig.canvas.draw()
         images.append(Image.fromarray(np.asarray(fig.canvas.buffer_rgba())[..., :3]))
     images[0].save(path, save_all=True, append_images=images[1:], duration=80, loop=0)

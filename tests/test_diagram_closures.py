@@ -189,3 +189,25 @@ def test_closure_texts_do_not_overlap_other_texts():
         for u, other in texts:
             if u != t:
                 assert not (bb.x0 < other.x1 and other.x0 < bb.x1 and bb.y0 < other.y1 and other.y0 < bb.y1), (t, u)
+
+
+def test_drawing_labels_of_nearby_points_are_pushed_apart():
+    """`multipole draw` (the compressor drawing, issue 13): labels of points that lie together (the
+    crank's bearing and the guide's anchor on P's centre, say) do not print over each other.  Five
+    labels on one point and three on a close one; their text boxes, measured by matplotlib's
+    renderer, overlap pairwise by nothing."""
+    from multipole.drawing import _place_labels
+    from multipole.plotting import new_figure
+    fig = new_figure(6, 4)
+    ax = fig.subplots()
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    labels = [(0.5, 0.5, f"element{k}.P{k}") for k in range(5)] + [(0.52, 0.5, f"rod.P{k}") for k in range(3)]
+    _place_labels(ax, labels)
+    renderer = fig.canvas.get_renderer()
+    fig.draw(renderer)
+    boxes = [t.get_window_extent(renderer) for t in ax.texts]
+    assert [t.get_text() for t in ax.texts] == [text for _x, _y, text in labels]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert min(a.x1, b.x1) - max(a.x0, b.x0) <= 0.5 or min(a.y1, b.y1) - max(a.y0, b.y0) <= 0.5

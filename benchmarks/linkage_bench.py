@@ -1,11 +1,14 @@
 """Linkage benchmarks (docs/performance.md, "Linkages"): the torque-driven four-bar of
-tests/test_linkage_dynamics.py.
+tests/test_linkage_dynamics.py and a torque-driven slider-crank.
 
-1. Cost per right-hand-side call: the generated model (numpy backend: Python code; numba backend:
-   compiled) against a hand-written closed-form right-hand side in the same language (minimal
-   coordinate: the crank angle; coupler and rocker from the circle intersection; the reduced inertia
-   and its velocity terms by virtual power).  Each call at a new state, CPU time, the two timed
-   interleaved, medians of 7 rounds.
+1. Cost per right-hand-side call, both scenes: the generated model (numpy backend: Python code;
+   numba backend: compiled) against a hand-written closed-form right-hand side in the same language
+   (minimal coordinate: the crank angle; four-bar: coupler and rocker from the circle intersection;
+   slider-crank: the rod's sine from the pin height, the travel by one square root; the reduced
+   inertia and its velocity terms by virtual power), in Python floats (no numpy scalar or array).
+   Each call at a new state (the crank angle moved by 1e-9 rad, at most 1e-6 from the start: the
+   generated closure then starts 1e-9 to 1e-6 off, and its Newton solve takes 2 iterations, as in
+   a run at rtol 1e-9), CPU time, the two timed interleaved, medians of 7 rounds.
 2. Whole runs at equal error: `multipole` with the numba backend against the hand-written model
    under scipy's solve_ivp (DOP853), each over a ladder of tolerances; error = max |crank angle -
    reference| over the output grid (reference: the hand model at rtol 1e-13).
@@ -46,7 +49,8 @@ simulate: {{t_end: {T_END}, dt_out: 0.01}}
 
 def hand_rhs(t, y):
     """Closed-form four-bar: y = (theta, omega); dependent angles from the circle intersection."""
-    return [y[1], hand_accel(y[0], y[1])]
+    th, w = y.tolist()                 # Python floats: numpy scalars make every operation slower
+    return [w, hand_accel(th, w)]
 
 
 def hand_accel(th, w):
@@ -91,6 +95,57 @@ def hand_accel(th, w):
     return force / mass
 
 
+# -- the slider-crank (DAN + DDS): crank R about the origin, rod LR, pin P at the height E above the
+# slide line (the x axis through the frame-fixed guide anchor), driven by the constant torque TAU_SC
+R, LR, E = 0.1, 0.35, 0.02
+M_SC, J_SC = (0.5, 0.8, 1.2), (0.002, 0.01)        # crank, rod, slider masses; crank, rod inertias
+TAU_SC = 0.5
+
+SCENE_SC = f"""
+name: slider_crank_torque
+elements:
+  src: {{type: torque_source, value: {TAU_SC}}}
+  crank: {{type: DAN, l: {R}, phi0: {PHI0}, m: {M_SC[0]}, J: {J_SC[0]}}}
+  rod: {{type: DDS, l: {LR}, v: {E}, K: 1, mL: {M_SC[1]}, JL: {J_SC[1]}, mS: {M_SC[2]}, JS: 0.001}}
+connections:
+  - [src.p, crank.drive]
+  - [crank.b, rod.a1]
+outputs: [crank.phi, rod.x]
+simulate: {{t_end: {T_END}, dt_out: 0.01}}
+"""
+
+
+def hand_rhs_sc(t, y):
+    """Closed-form slider-crank: y = (theta, omega)."""
+    th, w = y.tolist()
+    return [w, hand_accel_sc(th, w)]
+
+
+def hand_accel_sc(th, w):
+    """Crank acceleration [rad/s^2] of the slider-crank at crank angle ``th`` [rad] and rate ``w``
+    [rad/s]: the rod angle phi from the pin height (A - P = LR (cos phi, sin phi), P beyond the
+    crank pin: cos phi < 0), the travel x = R cos th - LR cos phi."""
+    c, s = math.cos(th), math.sin(th)
+    sl = (R * s - E) / LR
+    cl = -math.sqrt(1.0 - sl * sl)
+    k1 = R * c / (LR * cl)                                   # dphi/dth
+    b1 = (-R * s * w * w / LR + sl * (k1 * w) ** 2) / cl     # phi'' at zero crank acceleration
+    kx = -R * s + LR * sl * k1                               # dx/dth
+    bx = -R * c * w * w + LR * cl * (k1 * w) ** 2 + LR * sl * b1
+    jcx, jcy, bcx, bcy = -0.5 * R * s, 0.5 * R * c, -0.5 * R * c * w * w, -0.5 * R * s * w * w
+    jlx, jly = 0.5 * (-R * s + kx), 0.5 * R * c             # rod centre: midway between A and P
+    blx, bly = 0.5 * (-R * c * w * w + bx), -0.5 * R * s * w * w
+    mass = (J_SC[0] + M_SC[0] * (jcx * jcx + jcy * jcy) + J_SC[1] * k1 * k1
+            + M_SC[1] * (jlx * jlx + jly * jly) + M_SC[2] * kx * kx)
+    force = (TAU_SC - M_SC[0] * (jcx * bcx + jcy * bcy + G * jcy) - J_SC[1] * k1 * b1
+             - M_SC[1] * (jlx * blx + jly * bly + G * jly) - M_SC[2] * kx * bx)
+    return force / mass
+
+
+#: per-call scenes: name, netlist, hand right-hand side, hand acceleration (scalar code)
+PER_CALL = (("four-bar", SCENE, hand_rhs, hand_accel), ("slider-crank", SCENE_SC, hand_rhs_sc, hand_accel_sc))
+
+
 def _cpu_per_call(fun, x, n):
     """CPU time per call of ``fun(0, x)`` [s] over ``n`` calls, each at a new state (``x[0]`` moved
     by 1e-9: the integrated start of the position closure is then off the closure, as in a run)."""
@@ -103,19 +158,26 @@ def _cpu_per_call(fun, x, n):
 
 
 def per_call(rounds=7, n=1000):
-    """``[(code, generated [s], hand-written [s], ratio, spread)]``: medians over ``rounds`` interleaved
-    rounds of CPU time per call; the spread is the ratio's lowest and highest over the rounds."""
+    """``[(scene, code, generated [s], hand-written [s], ratio, spread, Newton iterations per call)]``:
+    medians over ``rounds`` interleaved rounds of CPU time per call; the spread is the ratio's lowest
+    and highest over the rounds."""
     import multipole as mp
     from multipole import pipeline
-    sc = mp.loads(SCENE, "fourbar.yaml")
-    model = pipeline.model(sc)
-    x = np.array(model.x0, dtype=float)
-    y = np.array([PHI0, 0.0])
-    times = {"generated": [], "hand": []}
-    for _ in range(rounds):                            # interleaved: A B A B ...
-        times["generated"].append(_cpu_per_call(model.rhs, x, n))
-        times["hand"].append(_cpu_per_call(hand_rhs, y, n))
-    return [("Python (numpy backend)",) + _summary(times), ("numba (compiled loop)",) + per_call_compiled(sc)]
+    rows = []
+    for name, scene, rhs, accel in PER_CALL:
+        sc = mp.loads(scene, "scene.yaml")
+        model = pipeline.model(sc)
+        x = np.array(model.x0, dtype=float)
+        y = np.array([PHI0, 0.0])
+        times = {"generated": [], "hand": []}
+        model.reset_stats()
+        for _ in range(rounds):                            # interleaved: A B A B ...
+            times["generated"].append(_cpu_per_call(model.rhs, x, n))
+            times["hand"].append(_cpu_per_call(rhs, y, n))
+        its = model.stats["newton_iterations"] / model.stats["newton_solves"]
+        rows.append((name, "Python (numpy backend)") + _summary(times) + (its,))
+        rows.append((name, "numba (compiled loop)") + per_call_compiled(sc, accel))
+    return rows
 
 
 def _summary(times):
@@ -125,22 +187,24 @@ def _summary(times):
                                                                                      float(ratios.max()))
 
 
-def per_call_compiled(sc, n=200_000, rounds=7):
+def per_call_compiled(sc, hand, n=200_000, rounds=7):
     """Generated right-hand side (numba backend: a cfunc called through its address, as the
-    compiled integrator calls it) against the hand-written scalar code compiled by numba, each
-    called ``n`` times in a compiled loop; rounds interleaved, medians of CPU time per call [s]."""
+    compiled integrator calls it) against the hand-written scalar code ``hand`` compiled by numba,
+    each called ``n`` times in a compiled loop; rounds interleaved, medians of CPU time per call [s],
+    and the generated code's Newton iterations per call."""
     import numba
     from multipole import pipeline
     from multipole.backends import numba_backend, numba_kernels as K
     eq, outs, _ = pipeline.pruned(sc)
     m = numba_backend.run.compile(eq, outs)
-    accel = numba.njit(hand_accel)
+    accel = numba.njit(hand)
 
     @numba.njit
     def loop_generated(address, n, x, out, w):
         acc = 0.0
+        start = x[0]
         for i in range(n):
-            x[0] += 1e-9                      # a new state each call: nothing can be hoisted
+            x[0] = start + 1e-9 * (i & 1023)     # a new state each call, at most 1e-6 from the start
             K.call_model(address, 0.0, x, out, w)
             acc += out[1]
         return acc
@@ -148,8 +212,9 @@ def per_call_compiled(sc, n=200_000, rounds=7):
     @numba.njit
     def loop_hand(n, x, out):
         acc = 0.0
+        start = x[0]
         for i in range(n):
-            x[0] += 1e-9
+            x[0] = start + 1e-9 * (i & 1023)
             out[0] = x[1]
             out[1] = accel(x[0], x[1])
             acc += out[1]
@@ -161,12 +226,13 @@ def per_call_compiled(sc, n=200_000, rounds=7):
     times = {k: [] for k in runs}
     for fn in runs.values():
         fn()                                   # compile
+    w[:] = 0.0
     for _ in range(rounds):                    # interleaved: A B A B ...
         for k, fn in runs.items():
             t0 = time.process_time()
             fn()
             times[k].append((time.process_time() - t0) / n)
-    return _summary(times)
+    return _summary(times) + (w[0] / w[1],)      # w[0], w[1]: Newton iterations, solves (numba_kernels.W_HEAD)
 
 
 def equal_error():
@@ -231,11 +297,13 @@ def check_compile():
 
 
 def main():
-    print("## cost per right-hand-side call (torque-driven four-bar, CPU time, interleaved, medians of 7)")
-    print("| code | generated [µs] | hand-written [µs] | generated / hand [lowest-highest] |")
-    print("| --- | --- | --- | --- |")
-    for lang, gen, hand, ratio, (lo, hi) in per_call():
-        print(f"| {lang} | {gen * 1e6:.3g} | {hand * 1e6:.3g} | {ratio:.2f} [{lo:.2f}-{hi:.2f}] |")
+    print("## cost per right-hand-side call (torque-driven four-bar and slider-crank, CPU time, interleaved, "
+          "medians of 7)")
+    print("| scene | code | generated [µs] | hand-written [µs] | generated / hand [lowest-highest] | "
+          "Newton iterations per call |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, lang, gen, hand, ratio, (lo, hi), its in per_call():
+        print(f"| {name} | {lang} | {gen * 1e6:.3g} | {hand * 1e6:.3g} | {ratio:.2f} [{lo:.2f}-{hi:.2f}] | {its:.2f} |")
     print("\n## whole runs (crank angle over 2 s, CPU time, interleaved, medians of 5 [lowest-highest])")
     print("| rtol | hand + solve_ivp DOP853: error | CPU [ms] | numba backend (warm call): error | CPU [ms] |")
     print("| --- | --- | --- | --- | --- |")

@@ -72,10 +72,7 @@ def cmd_equations(args) -> int:
     elif args.format == "latex":
         print(eq.to_latex(scene.outputs))
     else:
-        source = pipeline.model(scene).source
-        if "newton(" in source:      # the Newton solver the generated code calls, so the text runs alone
-            source = "from multipole.codegen import newton\n" + source
-        print(source)
+        print(pipeline.model(scene).source)      # it imports the Newton solvers it calls: it runs alone
     return 0
 
 

@@ -14,6 +14,7 @@ import functools
 import hashlib
 import math
 import re
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -219,10 +220,11 @@ def scalar_newton_lines(name: str, params: str, n: int, start: list, residual: s
     in scalars ``z0, z1, ...`` with Cramer's step, started from the code ``start`` (one per unknown),
     then from zero (:data:`NEWTON_MAX_ITER`).  ``residual``: the call returning ``(F0, ..., J00, J01,
     ...)`` with ``{z}`` for the unknowns, NaN where the residuals cannot be computed (the attempt then
-    fails where :func:`_damped_newton` gets None).  ``done``: the lines (8 spaces) run with the solution
-    in ``z0, ...`` and the iteration count in ``total`` (unindented, ending in a return); ``fail``: the
-    lines after both attempts failed (unindented).  Written once per loop, it is the whole solve: no list, array or call besides
-    the residual's (in Python the generic :func:`newton` costs twice the residual evaluations)."""
+    fails where :func:`_damped_newton` gets None).  ``done``: the lines run with the solution in ``z0,
+    ...`` and the iteration count in ``total`` (unindented, ending in a return); ``fail``: the lines
+    after both attempts failed (unindented).  Written once per loop, it is the whole solve: no list,
+    array or call besides the residual's and a few builtins (in Python the generic :func:`newton`
+    costs three times as much for two iterations)."""
     r = range(n)
     zs, news, ds = [f"z{i}" for i in r], [f"n{i}" for i in r], [f"d{i}" for i in r]
     out = ", ".join([f"F{i}" for i in r] + [f"J{i}{j}" for i in r for j in r]) + ","
@@ -231,28 +233,28 @@ def scalar_newton_lines(name: str, params: str, n: int, start: list, residual: s
     norm = "abs(F0)" if n == 1 else "math.hypot(F0, F1)"      # no overflow of the squares
     for i in range(2, n):
         norm = f"math.hypot({norm}, F{i})"
-    big = "max(" + ", ".join(f"abs({z})" for z in zs) + ", 0.0)"
+    big, size = ("max(" + ", ".join(f"abs({v})" for v in vs) + ")" if n > 1 else f"abs({vs[0]})" for vs in (zs, ds))
+    finite = f"<= {sys.float_info.max!r}"        # false for inf and NaN; a literal, no lookup in Python
     at = lambda names: residual.format(z=", ".join(names))      # noqa: E731
     ind = " " * 16
     lines = [f"def {name}({params}):", f'    """{doc}"""',
              "    total = 0", "    for attempt in range(2):",
              f"        {tup} = ({', '.join(start)},) if attempt == 0 else ({', '.join('0.0' for _ in r)},)",
              f"        {out} = {at(zs)}", f"        norm = {norm}",
-             "        if not norm < math.inf:     # not computable at the start",
+             f"        if not norm {finite}:     # not computable at the start",
              "            continue",
              "        nudges = 0",
              f"        for it in range(1, {NEWTON_MAX_ITER[0]} + 1 if attempt == 0 else {NEWTON_MAX_ITER[1]} + 1):",
              "            if norm == 0.0:     # a zero residual is a solution, even where J is singular"]
     lines += [ind + line for line in done]
     lines += ["            total += 1", f"            det = {det}", "            if det != 0.0:"]
-    lines += [f"                {d} = ({c}) / det" for d, c in zip(ds, cols)]
-    lines += ["            if det == 0.0 or not " + " + ".join(f"abs({d})" for d in ds) + " < math.inf:",
+    lines += [f"                {d} = ({c}) / det" for d, c in zip(ds, cols)] + [f"                step = {size}"]
+    lines += [f"            if det == 0.0 or not step {finite}:",
               "                # off the root (d*f*|f| at f = 0): step off the singular point",
               "                if nudges == 3:", "                    break", "                nudges += 1"]
     lines += [f"                {z} += {NEWTON_NUDGE} * (1.0 + abs({z}))" for z in zs]
     lines += [f"                {out} = {at(zs)}", f"                norm = {norm}",
-              "                if not norm < math.inf:", "                    break", "                continue",
-              "            step = max(" + ", ".join(f"abs({d})" for d in ds) + ", 0.0)",
+              f"                if not norm {finite}:", "                    break", "                continue",
               f"            if step <= 1e-12 * (1.0 + {big}):     # converged to rounding: no line search"]
     lines += [f"                {z} -= {d}" for z, d in zip(zs, ds)] + [ind + line for line in done]
     lines += ["            lam = 1.0", "            while True:"]
@@ -260,7 +262,7 @@ def scalar_newton_lines(name: str, params: str, n: int, start: list, residual: s
     lines += [f"                {out} = {at(news)}", f"                norm_new = {norm}",
               "                if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:", "                    break",
               "                lam *= 0.5",
-              "            if not norm_new < math.inf:     # not computable even at the shortest step",
+              f"            if not norm_new {finite}:     # not computable even at the shortest step",
               "                break",
               f"            {tup} = {', '.join(news)},", "            norm = norm_new",
               f"            if lam * step <= 1e-12 * (1.0 + {big}) or norm == 0.0:"]

@@ -174,68 +174,17 @@ def _newton{k}(w):
     for i in range({n}):
         z[i] = math.nan
 '''
-#: loops up to this many unknowns get a Newton iteration in scalar variables (the step by Cramer's
-#: rule, residuals returned as a tuple): no arrays at all; the dyads of a mechanism have two unknowns
-SCALAR_NEWTON_MAX = 3
-
-
-def _cramer(n: int) -> tuple[str, list]:
-    """Code of ``det(J)`` and of ``det(J_i)`` (column i replaced by ``F``) for the scalars ``J{i}{j}``
-    and ``F{i}``: the Newton step is ``dz_i = det(J_i) / det(J)``."""
-    J = sp.Matrix(n, n, lambda i, j: sp.Symbol(f"J{i}{j}"))
-    F = sp.Matrix(n, 1, lambda i, _j: sp.Symbol(f"F{i}"))
-    cols = []
-    for i in range(n):
-        Ji = J.copy()
-        Ji[:, i] = F
-        cols.append(str(sp.expand(Ji.det(method="berkowitz"))))
-    return str(sp.expand(J.det(method="berkowitz"))), cols
-
-
-def _scalar_newton(k: int, n: int, off: int) -> str:
-    """The damped Newton iteration of :data:`_NEWTON` in scalars for a loop of ``n`` unknowns (up to
-    :data:`SCALAR_NEWTON_MAX`) whose residual function ``_blk{k}(z0, ..., w)`` returns ``(F0, ...,
-    J00, J01, ...)``: warm-started from ``w[off:off + n]``, then from zero; returns the solution (NaN
-    if both starts fail)."""
-    r = range(n)
-    zs, news, ds = [f"z{i}" for i in r], [f"n{i}" for i in r], [f"d{i}" for i in r]
-    out = ", ".join([f"F{i}" for i in r] + [f"J{i}{j}" for i in r for j in r])
-    det, cols = _cramer(n)
-    tup = ", ".join(zs) + ","
-    norm = "math.sqrt(" + " + ".join(f"F{i} * F{i}" for i in r) + ")"
-    big = "max(" + ", ".join(f"abs({z})" for z in zs) + ", 0.0)"
-    store = [f"                w[{off + i}] = {z}" for i, z in enumerate(zs)]
-    done = ["                w[0] += total", "                w[1] += 1"] + store + [f"                return {tup}"]
-    lines = ['@njit(cache=True, error_model="numpy")', f"def _newton{k}(w):",
-             f'    """Damped Newton for the loop {k} in scalars, warm-started from w[{off}:{off + n}], then '
-             'from zero."""',
-             "    total = 0", "    for attempt in range(2):",
-             f"        {tup} = (" + ", ".join(f"w[{off + i}]" for i in r) + ",) if attempt == 0 else ("
-             + ", ".join("0.0" for _ in r) + ",)",
-             f"        {out}, = _blk{k}({', '.join(zs)}, w)", f"        norm = {norm}",
-             f"        for it in range(1, {codegen.NEWTON_MAX_ITER[0]} + 1 if attempt == 0 else "
-             f"{codegen.NEWTON_MAX_ITER[1]} + 1):",
-             "            if norm == 0.0:     # a zero residual is a solution, even where J is singular"]
-    lines += done
-    lines += ["            total += 1", f"            det = {det}",
-              "            if det == 0.0:      # off the root (d*f*|f| at f = 0): step off the singular point"]
-    lines += [f"                {z} += {codegen.NEWTON_NUDGE} * (1.0 + abs({z}))" for z in zs]
-    lines += [f"                {out}, = _blk{k}({', '.join(zs)}, w)", f"                norm = {norm}",
-              "                continue"]
-    lines += [f"            {d} = ({c}) / det" for d, c in zip(ds, cols)]
-    lines += ["            step = max(" + ", ".join(f"abs({d})" for d in ds) + ", 0.0)",
-              f"            if step <= 1e-12 * (1.0 + {big}):     # converged to rounding: no line search"]
-    lines += [f"                {z} -= {d}" for z, d in zip(zs, ds)] + done
-    lines += ["            lam = 1.0", "            while True:"]
-    lines += [f"                {m} = {z} - lam * {d}" for m, z, d in zip(news, zs, ds)]
-    lines += [f"                {out}, = _blk{k}({', '.join(news)}, w)", f"                norm_new = {norm}",
-              "                if norm_new <= (1 - 1e-4 * lam) * norm or lam < 1e-6:", "                    break",
-              "                lam *= 0.5"]
-    lines += ["            step = lam * max(" + ", ".join(f"abs({d})" for d in ds) + ", 0.0)"]
-    lines += [f"            {tup} = {', '.join(news)},", "            norm = norm_new",
-              f"            if step <= 1e-12 * (1.0 + {big}) or norm == 0.0:"] + done
-    lines += ["    w[2] += 1", "    return (" + ", ".join("math.nan" for _ in r) + ",)", ""]
-    return "\n".join(lines)
+def _scalar_newton(k: int, n: int, off: int) -> list:
+    """The damped Newton function ``_newton{k}(w)`` (:func:`multipole.codegen.scalar_newton_lines`) for a
+    loop of up to :data:`multipole.codegen.SCALAR_NEWTON_MAX` unknowns whose residual function
+    ``_blk{k}(z0, ..., w)`` returns ``(F0, ..., J00, J01, ...)``: warm-started from ``w[off:off + n]``,
+    then from zero; it returns the solution (NaN if both starts fail, counted in ``w[2]``)."""
+    zs = ", ".join(f"z{i}" for i in range(n)) + ","
+    done = ["w[0] += total", "w[1] += 1"] + [f"w[{off + i}] = z{i}" for i in range(n)] + [f"return {zs}"]
+    fail = ["w[2] += 1", "return (" + ", ".join("math.nan" for _ in range(n)) + ",)"]
+    return ['@njit(cache=True, error_model="numpy")'] + codegen.scalar_newton_lines(
+        f"_newton{k}", "w", n, [f"w[{off + i}]" for i in range(n)], f"_blk{k}({{z}}, w)", done, fail,
+        f"Damped Newton for the loop {k} in scalars, warm-started from w[{off}:{off + n}], then from zero.")
 
 
 _W_HEAD = K.W_HEAD     # layout of the work array: see numba_kernels.W_HEAD
@@ -255,6 +204,7 @@ class _Writer(codegen.Writer):
         self.offsets: dict = {}              # Newton loop (block index) -> offset of its guess in w
         self.deps: dict = {}                 # Newton loop -> symbols its residuals read
         # A and b of the numeric linear loops in a scratch part of w (no allocation per call), shared:
+        self.hoisted: dict = {}              # Newton loop -> [(symbol, its residuals' terms free of z)]
         # the loops are solved one after the other
         self.linear_scratch = self.work
         self.work += max([len(u.variables) * (len(u.variables) + 1) for u in self.units
@@ -297,12 +247,14 @@ class _Writer(codegen.Writer):
         k = u.block
         if k not in self.offsets:
             # w[off:] the guess, then the values the residuals read, then Newton's scratch (z first)
-            res = [sp.sympify(r).xreplace(self.pvals) for r in b.residuals]
+            res, self.hoisted[k] = codegen.loop_invariants([self.fold(r) for r in b.residuals], zs, f"_l{k}_")
+            for sym, _e in self.hoisted[k]:
+                N[sym] = str(sym)
             free = set().union(*(r.free_symbols for r in res)) - set(zs)
             self.deps[k] = deps = sorted(free, key=lambda s: N[s])
             off = self.offsets[k] = self.work
             s_z = off + n + len(deps)
-            scalar = n <= SCALAR_NEWTON_MAX
+            scalar = n <= codegen.SCALAR_NEWTON_MAX
             self.work = s_z if scalar else s_z + 4 * n + n * n
             Jz = sp.Matrix(res).jacobian(zs)
             head = f'    """Residuals of the algebraic loop for {", ".join(map(str, zs))} and their Jacobian."""'
@@ -314,7 +266,7 @@ class _Writer(codegen.Writer):
             if scalar:
                 src += ["    return (" + ", ".join([P(r) for r in res] + [P(Jz[i, j]) for i in range(n)
                                                                            for j in range(n)]) + ",)",
-                        "", _scalar_newton(k, n, off)]
+                        ""] + _scalar_newton(k, n, off)
                 self.blocks_src += src
                 return self.newton_call(u, b)
             src += [f"    _F[{i}] = {P(r)}" for i, r in enumerate(res)]
@@ -329,9 +281,10 @@ class _Writer(codegen.Writer):
         """The call of loop ``u``'s Newton function: its inputs and start into w, the solution out."""
         N, zs, k = self.names, u.variables, u.block
         n, off, deps = len(zs), self.offsets[k], self.deps[k]
-        lines = [f"    w[{off + n + i}] = {N[d]}" for i, d in enumerate(deps)]
+        lines = [f"    {N[sym]} = {self.P(e)}" for sym, e in self.hoisted[k]]
+        lines += [f"    w[{off + n + i}] = {N[d]}" for i, d in enumerate(deps)]
         lines += [f"    w[{off + i}] = {N[v]}" for i, v in enumerate(b.start or ())]
-        if n <= SCALAR_NEWTON_MAX:
+        if n <= codegen.SCALAR_NEWTON_MAX:
             return lines + [f"    {', '.join(N[z] for z in zs)}, = _newton{k}(w)"]
         s_z = off + n + len(deps)
         return lines + [f"    _newton{k}(w)"] + [f"    {N[z]} = w[{s_z + i}]" for i, z in enumerate(zs)]

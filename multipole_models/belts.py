@@ -59,7 +59,8 @@ description: >
 # Geometry [m]: motor pulley M at (0, 0), r = 50 mm; compressor pulley P at (0.5, 0.05), r = 150 mm;
 # tensioner roll T, r = 30 mm, on a lever of 0.099 m pivoted at O = (0.32, -0.11), at 131.46 deg at the
 # start (its rest angle with the belt at F0; at 135 deg T would be at (0.25, -0.04)).  The crank
-# (r = 50 mm, rod 0.18 m) starts at the bottom dead centre, where the gas spring holds it.  The belt runs counter-clockwise around M and P and over the top of T
+# (r = 50 mm, rod 0.18 m) turns about P's centre (it sits on P's shaft; the cylinder's axis is the
+# horizontal through that centre) and starts at the bottom dead centre, where the gas spring holds it.  The belt runs counter-clockwise around M and P and over the top of T
 # (T turns clockwise).  Wrap senses s (+1: a counter-clockwise turn of the roll pays band out into
 # the span): tight span P -> M (+1, -1), span M -> T (+1, +1), span T -> P (-1, -1).
 parameters:
@@ -93,8 +94,8 @@ elements:
   tight: {type: planar_band, EA: EA, cd: cd, F0: F0, r1: 0.15, s1: 1, r2: 0.05, s2: -1}
   span2: {type: planar_band, EA: EA, cd: cd, F0: F0, r1: 0.05, s1: 1, r2: 0.03, s2: 1}
   span3: {type: planar_band, EA: EA, cd: cd, F0: F0, r1: 0.03, s1: -1, r2: 0.15, s2: -1}
-  crank: {type: DAN, l: 0.05, phi0: 3.141592653589793, m: 2.0, J: 0.05, gy: 0.0, x1: 1.0}
-  rod: {type: DDS, l: 0.18, v: 0.0, K: 1, mL: 0.6, JL: 0.003, mS: 0.4, JS: 0.0001, gy: 0.0, x2: 1.0}
+  crank: {type: DAN, l: 0.05, phi0: 3.141592653589793, m: 2.0, J: 0.05, gy: 0.0, x1: 0.5, y1: 0.05}
+  rod: {type: DDS, l: 0.18, v: 0.0, K: 1, mL: 0.6, JL: 0.003, mS: 0.4, JS: 0.0001, gy: 0.0, x2: 0.5, y2: 0.05}
   gas: {type: C, law: p0A*(L0/(L0 - q))**1.4, domain: translational}
   loss: {type: damper, d: dl}
 connections:

@@ -42,7 +42,7 @@ import multipole as mp
 from multipole import bench, pipeline
 from multipole.backends import get_backend, numba_backend
 from multipole.backends import numba_kernels as K
-from multipole.simulate import output_grid
+from multipole.simulate import output_grid, simulate as drive
 import multipole_models as mm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -342,6 +342,25 @@ def at_least(a: bench.Timing, b: bench.Timing, target: float) -> dict:
 # -------------------------------------------------------------------------------------------------
 # one scene
 
+#: runs within this factor of a contender's fastest sweep time at a level are re-timed to choose
+CANDIDATE_FACTOR, CANDIDATES = 2.0, 3
+
+
+def fastest(rep, level: float, who: str, call):
+    """The fastest run of contender ``who`` reaching ``level``: the sweep's choice
+    (:func:`multipole.bench.fastest`), unless up to :data:`CANDIDATES` runs come within
+    :data:`CANDIDATE_FACTOR` of it, which are then re-timed interleaved (3 rounds) and the lowest
+    median wins: on a loaded machine one sweep sample can make a slower tolerance look faster."""
+    first = bench.fastest(rep, level, who)
+    if first is None:
+        return None
+    near = sorted((r for r in rep.runs if r.backend == who and r.status == "ok" and r.err_max <= level
+                   and r.wall_s <= CANDIDATE_FACTOR * first.wall_s), key=lambda r: r.wall_s)[:CANDIDATES]
+    if len(near) < 2:
+        return first
+    t = timed({k: (lambda r=r: call(r.solver, r.rtol, r.atol)) for k, r in enumerate(near)}, 3)
+    return near[min(t, key=lambda k: statistics.median(t[k].cpu))]
+
 def measure(name: str, quick: bool = False, rounds: int = bench.TIMING_ROUNDS) -> dict:
     """Sweeps, ladder extension and the interleaved timing of one scene of :data:`SCENES`."""
     scene = mp.load(ROOT / SCENES[name])
@@ -381,7 +400,7 @@ def measure(name: str, quick: bool = False, rounds: int = bench.TIMING_ROUNDS) -
     loop = BareLoop(generated.module, generated.x0, grid, ref.t_end, outs)
     rows = []
     for level in bench.EQUAL_ERROR_LEVELS:
-        best = {who: bench.fastest(rep, level, who) for who in calls}
+        best = {who: fastest(rep, level, who, calls[who]) for who in calls}
         row = {"scene": name, "level": level, "best": best, "measurable": level > 3 * ref.error}
         rows.append(row)
         if not row["measurable"] or best[bench.HAND] is None or best[NUMBA] is None or best[LIMIT] is None:
@@ -402,8 +421,51 @@ def measure(name: str, quick: bool = False, rounds: int = bench.TIMING_ROUNDS) -
             row["numba/cvodes"] = at_most(t[NUMBA], t[CVODES], LIMIT_TARGET)
             row["scipy/cvodes"] = at_least(t[bench.HAND], t[CVODES], bench.SPEEDUP_TARGET)
     pc = per_call(generated.module, mine, generated.x0, rounds)
+    first = next((row["best"][NUMBA] for row in rows if "cpu" in row), None)
+    driver = driver_costs(generated, eq, outs, ref, grid, first, rounds) if first is not None else None
     return {"scene": name, "rows": rows, "reference": ref, "per_call": pc, "cvodes": expr is not None,
-            "runs": rep.runs}
+            "runs": rep.runs, "driver": (first, driver)}
+
+
+def driver_costs(generated, eq, outs, ref, grid, run, rounds) -> dict:
+    """Where a numba backend call spends the time the bare loop does not, for the backend's ``run``
+    (a :class:`multipole.bench.Run`), interleaved: ``{part: Timing}`` for the whole backend call, the
+    shared driver :func:`multipole.simulate.simulate` around an integrator that returns a finished
+    run at once (options, grid, plan, output sampling, checks, the Result), the backend's integrator
+    (:class:`numba_backend.NumbaIntegrator`: work arrays and the compiled loop), the bare loop
+    (work arrays, compiled loop, output sampling) and the compiled output sampling alone."""
+    method, x0 = run.chosen, np.asarray(generated.x0, float)
+    integ = numba_backend.run.integrator
+
+    def integrate():
+        return integ.integrate(generated, method, grid, x0.copy(), [], np.ones(0), ref.t_end, run.rtol, run.atol,
+                               math.inf, _NoBar())
+    done = integrate()
+
+    class Finished:                     # the integrator interface, its run already made
+        name, solvers = integ.name, integ.solvers
+
+        def method(self, solver, auto):
+            return integ.method(solver, auto)
+
+        def integrate(self, *args):
+            return done
+    loop = BareLoop(generated.module, x0, grid, ref.t_end, outs)
+    parts = {"whole call": lambda: numba_backend.run(eq, outs, ref.t_end, ref.dt_out, run.solver, run.rtol, run.atol,
+                                                      math.inf, False),
+             "shared driver": lambda: drive(generated, ref.t_end, ref.dt_out, method, run.rtol, run.atol, math.inf,
+                                                  False, integrator=Finished()),
+             "NumbaIntegrator": integrate,
+             "bare loop": lambda: loop(method, run.rtol, run.atol),
+             "output sampling": lambda: generated.outputs_on_grid(grid, done.states)}
+    return timed(parts, rounds)
+
+
+class _NoBar:
+    enabled = False
+
+    def update(self, t):
+        pass
 
 
 # -------------------------------------------------------------------------------------------------
@@ -459,6 +521,16 @@ def report(res: dict) -> str:
     lines += ["", f"Right-hand side per call through its address (compiled loop, CPU, medians of "
               f"{len(ratios)}): generated {g * 1e9:.3g} ns, hand-written {h * 1e9:.3g} ns, ratio "
               f"{statistics.median(ratios):.3g} [{min(ratios):.3g}–{max(ratios):.3g}].", ""]
+    run, parts = res["driver"]
+    if parts is not None:
+        med = {k: statistics.median(v.cpu) for k, v in parts.items()}
+        lines += [f"Where a numba backend call goes ({bench.run_label(run)}, rtol {run.rtol:.0e}, CPU [ms], medians "
+                  "of interleaved rounds): " + ", ".join(f"{k} {_ms(v)}" for k, v in med.items())
+                  + f"; the shared driver without the output sampling: "
+                  f"{_ms(med['shared driver'] - med['output sampling'])}, the backend's integrator minus the bare "
+                  f"loop without sampling: {_ms(med['NumbaIntegrator'] - med['bare loop'] + med['output sampling'])}, "
+                  f"the whole call minus the driver and the integrator: "
+                  f"{_ms(med['whole call'] - med['shared driver'] - med['NumbaIntegrator'])}.", ""]
     return "\n".join(lines)
 
 

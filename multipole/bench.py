@@ -57,6 +57,7 @@ import math
 from importlib.metadata import entry_points
 import statistics
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -506,7 +507,6 @@ _SCENE_DIRS: list = []          # the temporary folders of default scenes with d
 def _scene_folder(entry: str, name: str, text: str, files: dict) -> Path:
     """Write a default scene ``name`` of the provider ``entry`` and its data files ``{file name: text}``
     (names relative to the scene's folder) into a private temporary folder; the scene file's path."""
-    import tempfile
     if not _SCENE_DIRS:
         _SCENE_DIRS.append(tempfile.TemporaryDirectory(prefix="multipole-bench-"))
     root = Path(_SCENE_DIRS[0].name) / entry

@@ -21,8 +21,9 @@ loop (``numba loop``: numba / numba loop is the backend's per-run set-up, numba 
 right-hand side) and the cost per call of the generated and the hand-written right-hand side, both
 called through their addresses in a compiled loop.
 
-    python benchmarks/machine_limit.py                      # every scene (about 2 min)
-    python benchmarks/machine_limit.py drive_train --quick  # one scene, ladder 1e-3, 1e-6, 1e-9
+    python benchmarks/machine_limit.py drive_train stiff_drive_train   # about 17 s CPU
+    python benchmarks/machine_limit.py slider_crank                    # about 63 s CPU
+    python benchmarks/machine_limit.py drive_train --quick   # ladder 1e-3, 1e-6, 1e-9 (extended), 3 rounds
 """
 from __future__ import annotations
 
@@ -249,7 +250,7 @@ class Cvodes:
         st = F.stats()
         outs = {name: np.asarray(g(self.grid, X), dtype=float) for name, g in self.hand.outputs.items()}
         return _Result(self.grid, outs, {"nfev": int(st["nfevals"]), "njev": int(st["n_call_jacF"]),
-                                         "nlu": int(st["nlinsetups"]), "steps": int(st["nsteps"])}, "CVODES BDF")
+                                         "nlu": int(st["nlinsetups"]), "steps": int(st["nsteps"])}, "CVODES")
 
 
 # -------------------------------------------------------------------------------------------------

@@ -130,14 +130,11 @@ def linear_response(A, y0, c, forcing_step=None, tau=None, t=None):
     return " + ".join(parts)
 
 
-def _linear_hand(name, names, A, x0, forcing=None, outputs=None) -> HandModel:
+def _linear_hand(name, names, A, x0, rhs, forcing=None, outputs=None) -> HandModel:
+    """A linear model ``x' = A x + forcing(t)`` whose right-hand side ``rhs`` is written out in scalars
+    as carefully as the generated code (a matrix product allocates arrays for a few numbers); ``A``
+    is its constant Jacobian, ``A`` and ``forcing`` also serve the closed-form references."""
     A = np.asarray(A, dtype=float)
-    if forcing is None:
-        def rhs(t, x):
-            return A @ x
-    else:
-        def rhs(t, x):
-            return A @ x + forcing(t)
 
     def jac(t, x):
         return A
@@ -282,9 +279,14 @@ bench: {'true' if bench else 'false'}
 
 def _two_mass_hand(params: dict) -> HandModel:
     p = _values(params, _TWO_MASS)
-    outs = {"m1.v": lambda t, X: X[1] / p["m1"], "m2.v": lambda t, X: X[3] / p["m2"]}
+    m1, m2, k1, k2 = (float(p[k]) for k in ("m1", "m2", "k1", "k2"))
+    outs = {"m1.v": lambda t, X: X[1] / m1, "m2.v": lambda t, X: X[3] / m2}
+
+    def rhs(t, x):
+        v1, v2 = x[1] / m1, x[3] / m2
+        return [-v1, k1 * x[0] - k2 * x[2], v1 - v2, k2 * x[2]]
     return _linear_hand("two_mass_oscillator", ["k1.q", "m1.p", "k2.q", "m2.p"], _two_mass_matrix(p),
-                        _two_mass_x0(p), outputs=outs)
+                        _two_mass_x0(p), rhs, outputs=outs)
 
 
 # -------------------------------------------------------------------------------------------------
@@ -346,11 +348,18 @@ def _stiff_hand(params: dict) -> HandModel:
     p = _values(params, _STIFF)
     T0, tau = p["T0"], p["tau"]
 
+    J1, J2, c, ds, db = (float(p[k]) for k in ("J1", "J2", "c", "d_s", "d_b"))
+
     def forcing(t):
         return np.array([T0 * (1 - np.exp(-t / tau)), 0.0, 0.0])
-    outs = {"load.omega": lambda t, X: X[2] / p["J2"], "rotor.omega": lambda t, X: X[0] / p["J1"]}
+
+    def rhs(t, x):
+        w1, w2 = x[0] / J1, x[2] / J2
+        shaft = c * x[1] + ds * (w1 - w2)
+        return [T0 * (1.0 - math.exp(-t / tau)) - shaft, w1 - w2, shaft - db * w2]
+    outs = {"load.omega": lambda t, X: X[2] / J2, "rotor.omega": lambda t, X: X[0] / J1}
     return _linear_hand("stiff_drive_train", ["rotor.p", "shaft.q", "load.p"], _stiff_matrix(p), np.zeros(3),
-                        forcing, outs)
+                        rhs, forcing, outs)
 
 
 # -------------------------------------------------------------------------------------------------
@@ -802,9 +811,14 @@ def _drive_train_hand(params: dict) -> HandModel:
 
     def forcing(t):
         return np.array([T0 * (1 - math.exp(-t / tau)), 0.0, 0.0])
+
+    def rhs(t, x):
+        w1, w2 = x[0] / J1, x[2] / J2
+        shaft = c * x[1] + ds * (w1 / i - w2)
+        return [T0 * (1.0 - math.exp(-t / tau)) - shaft / i, w1 / i - w2, shaft - db * w2]
     outs = {"rotor.omega": lambda t, X: X[0] / J1, "load.omega": lambda t, X: X[2] / J2,
             "shaft.force": lambda t, X: c * X[1]}
-    return _linear_hand("drive_train", ["rotor.p", "shaft.q", "load.p"], A, np.zeros(3), forcing, outs)
+    return _linear_hand("drive_train", ["rotor.p", "shaft.q", "load.p"], A, np.zeros(3), rhs, forcing, outs)
 
 
 #: diagrams/rlc_series.yaml: supply V [V] (scene parameter), R [Ω], L [H], C [F] from the file.
@@ -819,8 +833,12 @@ def _rlc_hand(params: dict) -> HandModel:
 
     def forcing(t):
         return np.array([V if t >= 0 else 0.0, 0.0])
+
+    def rhs(t, x):
+        current = x[0] / L
+        return [(V if t >= 0 else 0.0) - R * current - x[1] / C, current]
     outs = {"C1.v": lambda t, X: X[1] / C, "L1.i": lambda t, X: X[0] / L}
-    return _linear_hand("rlc_series", ["L1.p", "C1.q"], A, np.zeros(2), forcing, outs)
+    return _linear_hand("rlc_series", ["L1.p", "C1.q"], A, np.zeros(2), rhs, forcing, outs)
 
 
 #: piezo_stack_step: one PZT disc [m/V, m/N, F, Ω], the load [kg], the supply [V] and the pull [N]

@@ -9,8 +9,11 @@ How a run goes:
    the forward-mode Jacobian, the outputs and the switching functions, each as a numba ``cfunc``
    ``void fun(double t, double *x, double *out, double *w)`` that writes into ``out``; numeric
    linear loops are solved by unrolled elimination (up to 8 unknowns) or Gaussian elimination in
-   the work array ``w``, nonlinear loops by a damped Newton iteration warm-started from ``w``.  The
-   source is remembered in this process by the structure of the equations.
+   the work array ``w``, nonlinear loops by a damped Newton iteration warm-started from ``w``.  A
+   function of more than :data:`CHUNK_STATEMENTS` statements is written as ``@njit`` chunks of
+   about that many, called in turn by the cfunc (values one chunk passes to a later one go through
+   the end of ``w``), so that numba's compile time grows linearly with the model (:func:`cfunc_lines`).
+   The source is remembered in this process by the structure of the equations.
 2. *Compilation* — the source is written to ``$MULTIPOLE_CACHE/numba/m_<hash>.py`` (default
    ``~/.cache/multipole``; the hash covers the source, the kernels, numba and Python) and
    executed; numba compiles the functions with ``cache=True``, so a later run of the same model,
@@ -40,12 +43,14 @@ Jacobian) and ``auto`` (the stiffness test of :func:`multipole.simulate.choose_s
 and ``RK23`` run as ``RK45``, ``BDF`` and ``LSODA`` as ``Radau``; ``Result.solver_reason`` says so.
 Models numba cannot compile run on the ``numpy`` backend, visibly: a ``MultipoleWarning`` names the
 reason, and so do ``stats["backend"]`` (``numpy (fallback: could not compile: reason)``) and
-``solver_reason``; so do models whose generated source costs more than :data:`MAX_SOURCE_COST` (numba
-would compile them for minutes), which the backend refuses as too large (``numpy (fallback: refused as
-too large: ...)``, with the cost, the limit and ``MULTIPOLE_NUMBA_MAX_COST``).
+``solver_reason``; so do models whose generated source costs more than :data:`MAX_SOURCE_COST`, or
+one of whose functions more than :data:`MAX_FUNCTION_COST` (numba would compile them for minutes),
+which the backend refuses as too large (``numpy (fallback: refused as too large: ...)``, with the
+cost, the limit and ``MULTIPOLE_NUMBA_MAX_COST`` or ``MULTIPOLE_NUMBA_MAX_FUNCTION_COST``).
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import os
 import re
@@ -203,8 +208,8 @@ class _Writer(codegen.Writer):
         self.work = _W_HEAD + len(self.switches)   # the switches' sides, then the loops' parts
         self.offsets: dict = {}              # Newton loop (block index) -> offset of its guess in w
         self.deps: dict = {}                 # Newton loop -> symbols its residuals read
-        # A and b of the numeric linear loops in a scratch part of w (no allocation per call), shared:
         self.hoisted: dict = {}              # Newton loop -> [(symbol, its residuals' terms free of z)]
+        # A and b of the numeric linear loops in a scratch part of w (no allocation per call), shared:
         # the loops are solved one after the other
         self.linear_scratch = self.work
         self.work += max([len(u.variables) * (len(u.variables) + 1) for u in self.units
@@ -289,17 +294,16 @@ class _Writer(codegen.Writer):
         s_z = off + n + len(deps)
         return lines + [f"    _newton{k}(w)"] + [f"    {N[z]} = w[{s_z + i}]" for i, z in enumerate(zs)]
 
-    def function(self, name, doc, needed, values, shape) -> list:
-        """A cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``."""
+    def function(self, name, doc, needed, values, shape) -> tuple:
+        """The cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``, as
+        ``(name, doc, shape, body)`` for :func:`cfunc_lines`."""
         units = codegen.closure(self.units, needed)
-        return [f"@cfunc({_SIG}, cache=True, error_model='numpy')", f"def {name}(t, xp, outp, wp):", f'    """{doc}"""',
-                f"    x = carray(xp, ({len(self.states)},), np.float64)",
-                f"    out = carray(outp, {shape}, np.float64)", "    w = carray(wp, (N_WORK,), np.float64)"] + \
-            self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)] + [""]
+        return name, doc, shape, self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)]
 
-    def jacobian_function(self) -> list:
+    def jacobian_function(self) -> tuple:
         """The kernel's forward-mode Jacobian (:meth:`multipole.codegen.Writer.jacobian_plan`) as a
-        cfunc writing into ``out`` (numba compiles slice assignment and ``np.zeros`` slowly)."""
+        cfunc writing into ``out`` (numba compiles slice assignment and ``np.zeros`` slowly), as
+        ``(name, doc, shape, body)`` for :func:`cfunc_lines`."""
         n = len(self.states)
         plan = self.jacobian_plan()
         body = self.prologue(plan.units, self.eq.derivatives)
@@ -314,13 +318,9 @@ class _Writer(codegen.Writer):
             body += [f"    _G[{r_i}, {c}] = {code}" for r_i, c, code in step.g]
             body.append("    _Dz = _k.neg_solve(_Jz, _G)")
             body += [f"    {d} = _Dz[{zi}, {c}]" for zi, c, d in step.names]
-        body += ["    _J = out", f"    for _i in range({n}):", f"        for _j in range({n}):",
-                 "            _J[_i, _j] = 0.0"]
-        body += [f"    _J[{i}, {j}] = {d}" for i, j, d in plan.entries]
-        return [f"@cfunc({_SIG}, cache=True, error_model='numpy')", "def jac(t, xp, outp, wp):",
-                '    """Jacobian d(rhs)/dx into out."""',
-                f"    x = carray(xp, ({n},), np.float64)", f"    out = carray(outp, ({n}, {n}), np.float64)",
-                "    w = carray(wp, (N_WORK,), np.float64)"] + body + [""]
+        body += [f"    for _i in range({n}):", f"        for _j in range({n}):", "            out[_i, _j] = 0.0"]
+        body += [f"    out[{i}, {j}] = {d}" for i, j, d in plan.entries]
+        return "jac", "Jacobian d(rhs)/dx into out.", f"({n}, {n})", body
 
 
 switch_list = codegen.switch_list
@@ -332,6 +332,172 @@ def _kernel_digest() -> str:
     h.update(numba.__version__.encode())
     h.update(sys.version.encode())
     return h.hexdigest()[:16]
+
+
+# -- large functions in chunks -----------------------------------------------------------------------
+#: statements (source lines) per chunk of a generated function: a function longer than this is
+#: compiled as a sequence of ``@njit`` functions of at most about this many statements (a linear
+#: loop's matrix and solve stay in one chunk), each called in turn by the cfunc.  LLVM's SROA pass
+#: on one basic block of thousands of statements takes time quadratic in their number (measured:
+#: docs/performance.md, "numba compile time against model size"); in bounded chunks it is linear.
+CHUNK_STATEMENTS = 400
+
+
+class _Statement:
+    """One top-level statement of a generated function body: its ``text`` (source lines), the names
+    it ``writes`` and ``reads``, and its ``kind``: ``"x"`` (``name = x[i]``: repeated in every chunk
+    that reads it), ``"pure"`` (an assignment to names of arithmetic on names: moved to just before
+    its first use, dropped if nothing uses it) or ``"ordered"`` (anything else: a store, a call of a
+    loop's solver, an array: kept in its order)."""
+
+    def __init__(self, node, text: list, pure_reads: set):
+        self.text = text
+        stores = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
+        loads = {n.id for n in ast.walk(node) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Load)}
+        counters = {n.id for f in ast.walk(node) if isinstance(f, ast.For) for n in ast.walk(f.target)
+                    if isinstance(n, ast.Name)}
+        # what it reads before it runs; a compound statement (``if _p == 1: ...``) may leave a name
+        # as it was, so it reads what it writes (a loop's counter excepted); ``a -= b`` reads a
+        self.writes = stores
+        self.reads = loads if isinstance(node, ast.Assign) else (loads | stores) - counters
+        self.arrays = {n.value.id for n in ast.walk(node) if isinstance(n, ast.Subscript)
+                       and isinstance(n.value, ast.Name)}
+        named = isinstance(node, ast.Assign) and all(
+            isinstance(t, ast.Name) or (isinstance(t, ast.Tuple) and all(isinstance(e, ast.Name) for e in t.elts))
+            for t in node.targets)
+        value = node.value if named else None
+        if named and isinstance(value, ast.Subscript) and isinstance(value.value, ast.Name) and value.value.id == "x":
+            self.kind = "x"
+        elif named and all(_harmless(n, pure_reads) for n in ast.walk(value)):
+            self.kind = "pure"
+        else:
+            self.kind = "ordered"
+
+
+def _harmless(node, pure_reads: set) -> bool:
+    """True if ``node`` (part of an assigned value) neither changes nor reads anything a statement of
+    the function may change: a call of ``math``'s functions or builtins, a subscript of ``x`` or a
+    switch's side ``w[...]`` in ``pure_reads``, not a loop's solver (``_newton3(w)``) nor an array."""
+    if isinstance(node, ast.Call):
+        f = node.func
+        return (isinstance(f, ast.Name) and not f.id.startswith("_")) or (
+            isinstance(f, ast.Attribute) and isinstance(f.value, ast.Name) and f.value.id == "math")
+    if isinstance(node, ast.Subscript):
+        return (isinstance(node.value, ast.Name) and node.value.id == "x") or ast.unparse(node) in pure_reads
+    if isinstance(node, ast.Attribute):
+        return isinstance(node.value, ast.Name) and node.value.id == "math"
+    return not isinstance(node, (ast.Lambda, ast.NamedExpr, ast.Starred))
+
+
+def _statements(body: list, pure_reads: set) -> list:
+    """The top-level statements of ``body`` (lines indented by four spaces)."""
+    tree = ast.parse("\n".join(line[4:] for line in body))
+    return [_Statement(node, body[node.lineno - 1:node.end_lineno], pure_reads) for node in tree.body]
+
+
+def _schedule(stmts: list) -> list:
+    """Indices of ``stmts`` in an order with the ordered statements in theirs, each pure statement
+    just before its first use (depth first: what one output needs is computed together, so few
+    values cross from one chunk to another), unused pure statements left out.  A statement that
+    reads or writes a name assigned more than once (the unrolled elimination's ``_a0_1``, ``_p``)
+    counts as ordered."""
+    writers: dict = {}
+    for s in stmts:
+        for name in s.writes:
+            writers[name] = writers.get(name, 0) + 1
+    for s in stmts:
+        if s.kind != "ordered" and any(writers.get(r, 0) > 1 for r in s.reads | s.writes):
+            s.kind = "ordered"
+    define = {name: i for i, s in enumerate(stmts) if s.kind != "ordered" for name in s.writes}
+    done = [False] * len(stmts)
+    order: list = []
+    for root, s in enumerate(stmts):
+        if s.kind != "ordered":
+            continue
+        stack = [(root, iter(sorted(s.reads)))]
+        while stack:       # depth first, without recursion (a long chain of assignments is deep)
+            i, todo = stack[-1]
+            name = next((r for r in todo if r in define and not done[define[r]]), None)
+            if name is None:
+                stack.pop()
+                done[i] = True
+                order.append(i)
+            else:
+                d = define[name]
+                done[d] = True          # (marked on entry: an assignment never reads itself)
+                stack.append((d, iter(sorted(stmts[d].reads))))
+    return order
+
+
+def _chunks(stmts: list, order: list, limit: int) -> list:
+    """``order`` cut into runs of about ``limit`` source lines, never where an array other than
+    ``x``, ``out`` and ``w`` (a loop's matrix, a view of ``w``) is defined before and used after."""
+    arrays = set().union(*(s.arrays for s in stmts)) - {"x", "out", "w"}
+    last: dict = {}
+    for pos, i in enumerate(order):
+        for a in (stmts[i].arrays | stmts[i].writes | stmts[i].reads) & arrays:
+            last[a] = pos
+    open_until = -1
+    chunks, current, size = [], [], 0
+    for pos, i in enumerate(order):
+        current.append(i)
+        size += len(stmts[i].text)
+        for a in (stmts[i].arrays | stmts[i].writes | stmts[i].reads) & arrays:
+            open_until = max(open_until, last[a])
+        if size >= limit and pos >= open_until:
+            chunks.append(current)
+            current, size = [], 0
+    return chunks + ([current] if current else [])
+
+
+def _split(name: str, body: list, base: int, pure_reads: set, limit: int):
+    """``body`` as chunk functions ``_{name}_{k}(t, x, out, w)`` and the lines calling them, and the
+    number of values passed through ``w[base:]``; None if ``body`` is no longer than ``limit``."""
+    if sum(1 for line in body if line.strip()) <= limit:
+        return None
+    stmts = _statements(body, pure_reads)
+    order = _schedule(stmts)
+    chunks = _chunks(stmts, order, limit)
+    owner: dict = {}                 # value -> chunk that last assigned it
+    slot: dict = {}                  # value passed between chunks -> its place in w
+    loads: list = []
+    for c, chunk in enumerate(chunks):
+        local: set = set()
+        need: list = []
+        for i in chunk:
+            need += [r for r in sorted(stmts[i].reads) if r not in local and r in owner and r not in need]
+            local |= stmts[i].writes
+        loads.append(need)
+        for r in need:
+            if stmts[owner[r]].kind != "x":
+                slot.setdefault(r, base + len(slot))
+        for i in chunk:
+            for v in stmts[i].writes:
+                owner[v] = i
+    lines, calls = [], []
+    for c, chunk in enumerate(chunks):
+        head = [line for r in loads[c] for line in (stmts[owner[r]].text if r not in slot else
+                                                      [f"    {r} = w[{slot[r]}]"])]
+        text = [line for i in chunk for line in stmts[i].text]
+        stores = sorted({v for i in chunk for v in stmts[i].writes if v in slot}, key=slot.get)
+        lines += ['@njit(cache=True, error_model="numpy")', f"def _{name}_{c}(t, x, out, w):",
+                  f'    """Statements {c + 1} of {len(chunks)} of {name}."""'] + head + text
+        lines += [f"    w[{slot[v]}] = {v}" for v in stores] + [""]
+        calls.append(f"    _{name}_{c}(t, x, out, w)")
+    return lines, calls, len(slot)
+
+
+def cfunc_lines(name: str, doc: str, n: int, shape: str, body: list, base: int, pure_reads: set,
+                limit: int | None = None) -> tuple[list, int]:
+    """The cfunc ``name(t, xp, outp, wp)`` for ``n`` states running ``body`` (``out`` of ``shape``)
+    and how many places of the work array after ``base`` it uses: ``body`` itself if it has up to
+    ``limit`` (default :data:`CHUNK_STATEMENTS`) statements, else calls of its chunks (:func:`_split`)."""
+    split = _split(name, body, base, pure_reads, CHUNK_STATEMENTS if limit is None else limit)
+    lines, calls, used = split if split is not None else ([], body, 0)
+    return lines + [f"@cfunc({_SIG}, cache=True, error_model='numpy')", f"def {name}(t, xp, outp, wp):",
+                    f'    """{doc}"""', f"    x = carray(xp, ({n},), np.float64)",
+                    f"    out = carray(outp, {shape}, np.float64)", "    w = carray(wp, (N_WORK,), np.float64)"] + \
+        calls + [""], used
 
 
 def generate(eq, outputs) -> tuple[str, list]:
@@ -346,63 +512,101 @@ def generate(eq, outputs) -> tuple[str, list]:
     held = codegen.modal_switches(w, sw) if sw and not loops_switch else None
     w.locked(held)
     ders = [N[d] if d in N else P(d) for d in eq.derivatives]
-    body = w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives, ders,
-                      f"({n},)")
-    body += w.jacobian_function()
+    funs = [w.function("rhs", "d/dt of the states " + ", ".join(eq.state_names) + ".", eq.derivatives, ders,
+                       f"({n},)"), w.jacobian_function()]
     w.locked(None)
     out_exprs = [eq.output(o) for o in outputs]
     needed = set().union(*(e.free_symbols for e in out_exprs)) if out_exprs else set()
-    body += w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed, [P(e) for e in out_exprs],
-                       f"({len(outputs)},)")
+    funs.append(w.function("outputs", "The outputs " + ", ".join(outputs) + ".", needed, [P(e) for e in out_exprs],
+                           f"({len(outputs)},)"))
     needed = set().union(*(e.free_symbols for e in sw)) if sw else set()
-    body += w.function("switches", "Switching functions: a sign change is an event.", needed, [P(s) for s in sw],
-                       f"({len(sw)},)")
+    funs.append(w.function("switches", "Switching functions: a sign change is an event.", needed, [P(s) for s in sw],
+                           f"({len(sw)},)"))
+    # the values passed between the chunks of a large function go to w after everything else there
+    body, spill = [], 0
+    pure_reads = {_Printer.mode_ref.format(k=k) for k in range(len(sw))}
+    for name, doc, shape, lines in funs:
+        text, used = cfunc_lines(name, doc, n, shape, lines, w.work, pure_reads)
+        body += text
+        spill = max(spill, used)
     head = [f'"""numba model of {eq.name!r}, generated by multipole.backends.numba_backend: do not edit."""',
             f"# kernels {_kernel_digest()}", "import math", "", "import numpy as np",
             "from numba import carray, cfunc, njit, types", "",
-            "from multipole.backends import numba_kernels as _k", "", f"N_WORK = {w.work}",
+            "from multipole.backends import numba_kernels as _k", "", f"N_WORK = {w.work + spill}",
             f"N_SWITCHES = {len(sw)}"] + codegen.time_switch_lines(w, sw) + codegen.monitor_lines(w, sw) + [""]
     return "\n".join(head + w.blocks_src + body) + "\n", [str(s) for s in sw]
 
 
 #: the largest generated module numba is asked to compile, in :func:`source_cost` units (bytes, an
-#: array subscript counted as 100): numba's compile time grows faster than this cost (slope about
-#: 1.8 on the mass-spring chain: 8 s at 50 pairs, cost 87,500; 61 s at 150 pairs, cost 264,000; see
-#: docs/backends.md), so a larger model runs on the numpy backend, visibly.  The environment
-#: variable ``MULTIPOLE_NUMBA_MAX_COST`` sets another limit.
-MAX_SOURCE_COST = 150_000
+#: array subscript counted as 100).  With large functions compiled in chunks (:data:`CHUNK_STATEMENTS`)
+#: numba's compile time grows linearly with this cost (about 13 s of CPU time for the 300-pair chain,
+#: cost 425,000; docs/performance.md), so this limit bounds it to about a minute; a larger model runs
+#: on the numpy backend, visibly.  The environment variable ``MULTIPOLE_NUMBA_MAX_COST`` sets another.
+MAX_SOURCE_COST = 2_000_000
+#: the largest single function (a chunk, a loop's residual, a cfunc) numba is asked to compile: what
+#: cannot be cut (a linear loop's matrix and solve, one long expression) still costs LLVM time
+#: super-linear in its size (slope about 1.8: 61 s for the 150-pair chain written whole, whose ``jac``
+#: alone costs 163,000).  ``MULTIPOLE_NUMBA_MAX_FUNCTION_COST`` sets another.
+MAX_FUNCTION_COST = 150_000
 #: an array subscript (``_A[3, 4] = ...``, ``x[2]``) costs numba/LLVM about as much as 100 bytes of
 #: scalar code
 SUBSCRIPT_COST = 100
 _SUBSCRIPT = re.compile(r"[A-Za-z_]\w*\[")
+_FUNCTION = re.compile(r"^(?:@.*\n)*def (\w+)\(", re.M)
 
 
 class ModelTooLarge(Refused):
-    """The generated source costs more than :func:`max_source_cost`: the backend does not start numba
-    (the run falls back to numpy, saying the model was refused as too large)."""
+    """The generated source costs more than :func:`max_source_cost`, or one of its functions more than
+    :func:`max_function_cost`: the backend does not start numba (the run falls back to numpy, saying
+    the model was refused as too large)."""
 
 
 def source_cost(source: str) -> int:
-    """Predictor of numba's compile time for a generated module: its size in bytes plus
+    """Predictor of numba's compile time for generated code: its size in bytes plus
     :data:`SUBSCRIPT_COST` per array subscript (measured: a dense linear-loop matrix of 2,000 element
     stores in 71 kB compiles slower than a chain's 114 kB of scalar code)."""
     return len(source.encode()) + SUBSCRIPT_COST * len(_SUBSCRIPT.findall(source))
 
 
+def function_costs(source: str) -> dict:
+    """:func:`source_cost` of each top-level function of a generated module (decorator included)."""
+    starts = list(_FUNCTION.finditer(source))
+    return {m.group(1): source_cost(source[m.start():nxt.start() if nxt else len(source)])
+            for m, nxt in zip(starts, starts[1:] + [None])}
+
+
+def _limit(variable: str, default: int) -> int:
+    text = os.environ.get(variable, "").strip()
+    return int(text) if text.isdigit() else default
+
+
 def max_source_cost() -> int:
     """The limit on :func:`source_cost`: ``MULTIPOLE_NUMBA_MAX_COST`` or :data:`MAX_SOURCE_COST`."""
-    text = os.environ.get("MULTIPOLE_NUMBA_MAX_COST", "").strip()
-    return int(text) if text.isdigit() else MAX_SOURCE_COST
+    return _limit("MULTIPOLE_NUMBA_MAX_COST", MAX_SOURCE_COST)
+
+
+def max_function_cost() -> int:
+    """The limit on one function's cost: ``MULTIPOLE_NUMBA_MAX_FUNCTION_COST`` or :data:`MAX_FUNCTION_COST`."""
+    return _limit("MULTIPOLE_NUMBA_MAX_FUNCTION_COST", MAX_FUNCTION_COST)
 
 
 def check_size(source: str) -> None:
-    """Raise :class:`ModelTooLarge` (the caller falls back to numpy) if ``source`` is above the limit."""
+    """Raise :class:`ModelTooLarge` (the caller falls back to numpy) if ``source`` or one of its
+    functions is above its limit."""
     cost, limit = source_cost(source), max_source_cost()
     if cost > limit:
         raise ModelTooLarge("too large", f"generated source costs {cost:,} (bytes + {SUBSCRIPT_COST} per subscript), "
                             f"above the limit of {limit:,}",
                             "set the environment variable MULTIPOLE_NUMBA_MAX_COST above the cost to compile it "
                             "anyway, and wait")
+    costs, limit = function_costs(source), max_function_cost()
+    name = max(costs, key=costs.get, default=None)
+    if name is not None and costs[name] > limit:
+        raise ModelTooLarge("too large", f"its generated function {name} costs {costs[name]:,} (bytes + "
+                            f"{SUBSCRIPT_COST} per subscript), above the limit of {limit:,} for one function "
+                            "(numba's time grows faster than its size)",
+                            "set the environment variable MULTIPOLE_NUMBA_MAX_FUNCTION_COST above the cost to "
+                            "compile it anyway, and wait")
 
 
 _SOURCES: dict = {}

@@ -37,7 +37,7 @@ import sympy as sp
 from .diagnostics import names_list, run_checks
 from .network import Equation, FlatNetwork, State, var
 from .primitives import T
-from .stages import bulk, numeric_function
+from .stages import bulk, derivative, numeric_function
 
 _ROLE_RANK = {"storage": 0, "law": 0, "source": 0}
 
@@ -424,7 +424,7 @@ class _Analyser:
         syms = set().union(*(e.free_symbols for e in exprs)) | set(alg) | set(stvars)
         wrt = list(alg) + list(stvars)
         present = [e.free_symbols for e in exprs]
-        entries = [sp.sympify(sp.diff(e, v)) if v in fs else sp.Integer(0) for e, fs in zip(exprs, present) for v in wrt]
+        entries = [sp.sympify(derivative(e, v)) if v in fs else sp.Integer(0) for e, fs in zip(exprs, present) for v in wrt]
         pts = self.sample_points(syms)
         values = self.sample_values(entries, pts).reshape(len(pts), len(exprs), len(wrt))
         bad = ~np.isfinite(values)
@@ -692,9 +692,9 @@ class _Analyser:
                     if dv not in unknown_set:
                         unknown_set.add(dv)
                         new_unknowns.append(dv)
-                    total += sp.diff(e, v) * dv
+                    total += derivative(e, v) * dv
                 elif v in all_states:
-                    total += sp.diff(e, v) * der(v)
+                    total += derivative(e, v) * der(v)
                 elif v in self.flat.inputs:
                     total += sp.diff(e, v) * sp.diff(self.flat.inputs[v], T)
             if total.has(sp.DiracDelta):

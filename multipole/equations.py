@@ -29,7 +29,7 @@ from .diagnostics import Diagnostic
 from .errors import IllPosedError, ModelError
 from .network import closure_order, var
 from .primitives import T
-from .stages import bulk, numeric_function
+from .stages import _subset, bulk, derivative, numeric_function
 
 #: linear loops up to this size are solved symbolically
 SYMBOLIC_LIMIT = 8
@@ -307,36 +307,6 @@ def linear_coefficient(expr, v):
             return a, sp.expand(expr - a * v)
         coeffs.append(_subset(sp.Mul, [f for f in factors if f != v], sp.S.One))
     return sp.Add(*coeffs), _subset(sp.Add, rest, sp.S.Zero)
-
-
-def derivative(expr, v):
-    """d ``expr`` / d ``v`` for a symbol ``v``: by the power rule when ``expr`` is a sum of products
-    in which ``v`` is one factor, ``v`` or ``v**n`` (``n`` a number), else by sympy's ``diff``.
-
-    The same expression as ``sp.diff`` gives, about 40 times faster (sympy's derivative machinery
-    queries assumptions of every new object: 2.7 ms for ``c*q + c3*q**3``, against 0.07 ms here;
-    a 10,000-spring chain's Jacobian is 10,000 of them).
-    """
-    terms = []
-    for term in sp.Add.make_args(expr):
-        if v not in term.free_symbols:
-            continue
-        factors = sp.Mul.make_args(term)
-        hits = [k for k, f in enumerate(factors) if v in f.free_symbols]
-        f = factors[hits[0]]
-        if len(hits) != 1 or not (f == v or (f.is_Pow and f.base == v and f.exp.is_Number)):
-            return sp.diff(expr, v)
-        rest = factors[:hits[0]] + factors[hits[0] + 1:]
-        terms.append(_subset(sp.Mul, rest, sp.S.One) if f == v else sp.Mul(f.exp, *rest, v ** (f.exp - 1)))
-    return sp.Add(*terms)
-
-
-def _subset(cls, args, empty):
-    """``cls(*args)`` for ``args`` taken, in order, from one sum or product: already in canonical
-    form, so it is not built again through sympy's flattening (the cost of a large assemble)."""
-    if not args:
-        return empty
-    return args[0] if len(args) == 1 else cls._from_args(args)
 
 
 def _solve_single(expr, v):
@@ -695,8 +665,9 @@ class LoopFailure(ArithmeticError):
 def _newton_block(b: Block, values: dict):
     """Solve a nonlinear block at known ``values`` of everything else (scipy's hybrid Newton from a
     few starts); :class:`LoopFailure` if no start converges or the loop's Jacobian is singular at
-    the solution (the unknowns are not determined there)."""
-    from scipy.optimize import fsolve
+    the solution (the unknowns are not determined there).  A position closure is solved by
+    :func:`_closure_newton` from the integrated values instead (no scipy: its import was a quarter
+    of a mechanism's check)."""
     res = [sp.sympify(r).xreplace(values) for r in b.residuals]
     if any(r.free_symbols - set(b.variables) for r in res):
         raise ArithmeticError("the loop needs values that are not available")
@@ -725,8 +696,12 @@ def _newton_block(b: Block, values: dict):
         starts = [np.array([float(values[s]) for s in b.start])]
     for z0 in starts:
         with np.errstate(all="ignore"):
-            z, _info, ok, _msg = fsolve(f, z0, fprime=fprime, full_output=True)
-            if ok != 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(f(z))):
+            if b.start is not None:
+                z, ok = _closure_newton(f, fprime, z0), 1
+            else:
+                from scipy.optimize import fsolve
+                z, _info, ok, _msg = fsolve(f, z0, fprime=fprime, full_output=True)
+            if z is None or ok != 1 or not np.all(np.isfinite(z)) or not np.all(np.isfinite(f(z))):
                 continue
             J = fprime(z)
         if not np.all(np.isfinite(J)):
@@ -742,6 +717,27 @@ def _newton_block(b: Block, values: dict):
         return z
     raise LoopFailure(b, "its equations have no solution there (Newton's method converged from none of "
                       f"{len(starts)} starts)")
+
+
+def _closure_newton(f, fprime, z, tol: float = 1e-12, max_iter: int = 50):
+    """The root of the residuals ``f`` (Jacobian ``fprime``) by Newton's iteration from ``z``, with
+    the step rule of the generated code's closure solve (converged when the step is at most
+    ``tol``·(1 + max |z|)), or None.  The step is the least-squares one, so a start on a dead centre
+    whose residual is already zero stays where it is."""
+    for _ in range(max_iter):
+        F = f(z)
+        if not np.all(np.isfinite(F)):
+            return None
+        if not np.any(F):
+            return z
+        J = fprime(z)
+        if not np.all(np.isfinite(J)):
+            return None
+        step = np.linalg.lstsq(J, F, rcond=None)[0]
+        z = z - step
+        if np.abs(step).max() <= tol * (1.0 + np.abs(z).max()):
+            return z
+    return None
 
 
 def _singular_matrix(A) -> bool:

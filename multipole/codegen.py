@@ -852,7 +852,8 @@ class _Writer:
         for sym, _e in hoisted:
             N[sym] = str(sym)
         Jz = sp.Matrix(res).jacobian(zs)
-        deps = sorted(set().union(*(e.free_symbols for e in list(res) + list(Jz))) - set(zs), key=lambda v: N[v])
+        free = set().union(*(e.free_symbols for e in list(res) + list(Jz)))
+        deps = sorted(free - set(zs) - set(self.runtime), key=lambda v: N[v])     # (runtime: _P, a global)
         start = [N[v] for v in b.start] if b.start else [f"_guess[{k}][{i}]" for i in range(n)]
         values = [P(r) for r in res] + [P(Jz[i, j]) for i in range(n) for j in range(n)]
         body = self.shared_trig([f"    return ({', '.join(values)},)"])

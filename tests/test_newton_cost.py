@@ -54,13 +54,13 @@ simulate: {{t_end: 2.0, dt_out: 0.01}}
 """, "slider.yaml")
 
 
-def circle_intersection(theta):
+def circle_intersection(theta, l1=L1):
     """Coupler and rocker angles of the four-bar (the assembly K = +1) in closed form."""
     ax, ay = L * math.cos(theta), L * math.sin(theta)
     dx, dy = BX - ax, -ay
     d = math.hypot(dx, dy)
-    along = (L1 * L1 - L2 * L2 + d * d) / (2 * d)
-    across = math.sqrt(L1 * L1 - along * along)
+    along = (l1 * l1 - L2 * L2 + d * d) / (2 * d)
+    across = math.sqrt(l1 * l1 - along * along)
     px, py = ax + along * dx / d - across * dy / d, ay + along * dy / d + across * dx / d
     return math.atan2(py - ay, px - ax), math.atan2(py, px - BX)
 
@@ -115,6 +115,23 @@ def test_generated_newton_from_a_far_start_lands_on_the_circle_intersection(thet
     assert abs(values["rocker.L1.K.q3*"] - exact[0]) < 1e-12
     assert abs(values["rocker.L2.K.q3*"] - exact[1]) < 1e-12
     assert model.stats["newton_iterations"] > 2 * model.stats["newton_solves"]
+
+
+def test_a_runtime_parameter_in_the_closure_is_read_at_run_time():
+    """The coupler length as a runtime parameter (a parameter study compiles once): the generated
+    residual reads it from _P, and after set_parameters the solved angles are the circle
+    intersection of the new length."""
+    from multipole import codegen
+    eq = pipeline.equations(fourbar())
+    l1 = next(p for p in eq.params if str(p) == "rocker.l1")
+    model = codegen.compile_model(eq, ["crank.phi"], runtime=[l1])
+    model.set_parameters([0.65])
+    theta = 1.1
+    exact = circle_intersection(theta, l1=0.65)
+    x = np.array([theta, 0.0, exact[0] + 0.01, exact[1] - 0.01])
+    values = dict(zip(model.value_names, model.values(0.0, x)))
+    assert abs(values["rocker.L1.K.q3*"] - exact[0]) < 1e-12
+    assert abs(values["rocker.L2.K.q3*"] - exact[1]) < 1e-12
 
 
 def test_slider_crank_closure_against_the_pin_height():

@@ -890,6 +890,7 @@ def plot_work_precision(rep: SceneReport, path) -> None:
     floor = max(rep.reference.error, 1e-16)
     panels = [(axes[0], "wall_s", {"numpy"}, "numpy backend (generated model + scipy)"),
               (axes[1], "wall_s", {b for b in {r.backend for r in rep.runs} if b != "numpy"},
+               "compiled backend (dashed), no hand-written model" if rep.no_hand else
                "compiled backend (dashed) vs hand-written solve_ivp (dotted)"),
               (axes[2], "nfev", {"numpy"}, "numpy backend: work")]
     for ax, key, backends, title in panels:

@@ -3,8 +3,10 @@
     python benchmarks/run_all.py            # the full report (about 20 minutes on 2 cores)
     python benchmarks/run_all.py --quick    # a smoke version: fewer tolerances, smaller sizes
 
-Data go to docs/bench/ (CSV files and the bench's summary.md), figures to docs/figures/.  The
-section on compiled backends is filled from the bench rows of every backend that
+Data go to docs/bench/ (CSV files and the bench's summary.md), figures to docs/figures/.  Section 3
+(scaling with model size) belongs to ``benchmarks/chain_scaling.py``: it is carried over unchanged,
+with docs/bench/chain_scaling.csv and its figure (the chains here are measured only for section 1's
+per-call rows).  The section on compiled backends is filled from the bench rows of every backend that
 ``multipole.backends.available()`` lists; text between the markers
 ``<!-- backend-notes:begin -->`` and ``<!-- backend-notes:end -->`` in an existing report is kept.
 """

@@ -398,6 +398,9 @@ class _Analyser:
 
     # -- numerics on a group ---------------------------------------------------------------------
     def sample_points(self, symbols):
+        """``n_samples`` points ``{symbol: float}`` (Python floats: a sympy Float per symbol and point
+        was a tenth of a mechanism's analysis; :meth:`sample_values` makes them only to evaluate an
+        entry numpy cannot)."""
         pts = []
         states = {s.symbol: s for s in self.flat.states}
         starts: dict = {}           # initial values of displacement states, worked out once per group
@@ -416,7 +419,7 @@ class _Analyser:
                     pt[s] = q0.real + 2 * np.pi * k / self.n_samples + 0.1
                 else:
                     pt[s] = float(self.rng.normal())
-            pts.append({k: sp.Float(v) for k, v in pt.items()})
+            pts.append({k: float(v) for k, v in pt.items()})
         return pts
 
     def jacobians(self, eq_ids, alg, stvars):
@@ -460,14 +463,15 @@ class _Analyser:
                 if fn is None:
                     raise TypeError
                 with np.errstate(all="ignore"):
-                    vals = np.array([complex(v).real for v in fn(*[float(pt[v]) for v in free])], dtype=float)
+                    vals = np.array([complex(v).real for v in fn(*[pt[v] for v in free])], dtype=float)
                 if not np.all(np.isfinite(vals)):
                     raise ValueError
                 row[symbolic] = vals
             except (TypeError, ValueError, ArithmeticError, KeyError, NameError):
+                exact = {s: sp.Float(v) for s, v in pt.items()}
                 for k in symbolic:
                     try:
-                        row[k] = complex(entries[k].xreplace(pt).evalf()).real
+                        row[k] = complex(entries[k].xreplace(exact).evalf()).real
                     except (TypeError, ValueError):
                         pass
         return out
@@ -685,7 +689,7 @@ class _Analyser:
         for i in eq_ids:
             eq = self.equations[i]
             e = eq.expr
-            total = sp.diff(e, T)
+            total = derivative(e, T)
             for v in e.free_symbols:
                 if v in unknown_set:
                     dv = der(v)
@@ -696,7 +700,7 @@ class _Analyser:
                 elif v in all_states:
                     total += derivative(e, v) * der(v)
                 elif v in self.flat.inputs:
-                    total += sp.diff(e, v) * sp.diff(self.flat.inputs[v], T)
+                    total += derivative(e, v) * derivative(sp.sympify(self.flat.inputs[v]), T)
             if total.has(sp.DiracDelta):
                 self.findings.append(Finding("impulse", [i]))
             self.equations.append(Equation(sp.expand(total), eq.owner, "differentiated", None, "d/dt " + eq.note))

@@ -722,8 +722,8 @@ def _newton_block(b: Block, values: dict):
 def _closure_newton(f, fprime, z, tol: float = 1e-12, max_iter: int = 50):
     """The root of the residuals ``f`` (Jacobian ``fprime``) by Newton's iteration from ``z``, with
     the step rule of the generated code's closure solve (converged when the step is at most
-    ``tol``·(1 + max |z|)), or None.  The step is the least-squares one, so a start on a dead centre
-    whose residual is already zero stays where it is."""
+    ``tol``·(1 + max |z|)), or None (no convergence, or a Jacobian that is exactly singular off the
+    root).  A start whose residual is already zero stays where it is, even on a dead centre."""
     for _ in range(max_iter):
         F = f(z)
         if not np.all(np.isfinite(F)):
@@ -733,7 +733,10 @@ def _closure_newton(f, fprime, z, tol: float = 1e-12, max_iter: int = 50):
         J = fprime(z)
         if not np.all(np.isfinite(J)):
             return None
-        step = np.linalg.lstsq(J, F, rcond=None)[0]
+        try:
+            step = np.linalg.solve(J, F)
+        except np.linalg.LinAlgError:
+            return None
         z = z - step
         if np.abs(step).max() <= tol * (1.0 + np.abs(z).max()):
             return z

@@ -37,8 +37,9 @@ def numeric_function(symbols, exprs):
 
     Three costs of ``lambdify(..., "numpy")`` that the result does not need are left out: the
     symbols, whose names (``crank.L.K.q3``) are no Python names, are renamed once (``_s00000``, ...:
-    zero-padded in their sorted order, so every sum and product keeps its order of terms and the
-    values are the same to the bit) instead of replaced node by node in every expression; no
+    zero-padded in their sorted order: sums and products keep the order of terms of the original
+    names, where ``lambdify``'s own dummies may order them otherwise, so the values agree to rounding)
+    instead of replaced node by node in every expression; no
     docstring holding the printed expressions is written; and the namespace is numpy's own (the
     module object), not ``from numpy import *``, which loads numpy.testing, f2py and unittest (0.08 s
     at the first call of a process).  The 8-link mechanism's sampled Jacobians: 0.15 s -> 0.04 s.

@@ -5,9 +5,9 @@ every verb), 2 invalid input or options, 3 a run-time failure of a well-posed mo
 interrupted (Ctrl-C).  Errors are printed as one line without a traceback; the code comes from
 the error's class (``MultipoleError.exit_code``), mapped in one place, :func:`main`.
 
-A process that ran :func:`main` ends without the cyclic garbage collector's passes over every
-object still alive (:func:`_no_collection_at_exit`); docs/performance.md, "A new process on the
-numba backend".
+Run as the process's command (``main()`` reading ``sys.argv``), it leaves what the imports made
+out of the cyclic garbage collector's passes, during the command and at exit
+(:func:`_as_command`); docs/performance.md, "A new process on the numba backend".
 """
 from __future__ import annotations
 
@@ -234,20 +234,27 @@ def _print_held(texts) -> None:
         print(text, file=sys.stderr)
 
 
-def _no_collection_at_exit() -> None:
-    """At interpreter exit, after the atexit handlers registered later (the cache's clean-up of
-    its temporary folders among them), freeze every object (:func:`gc.freeze`): the collector's
-    final passes then neither traverse nor free what the imported libraries leave alive (1–2·10⁵
-    tracked objects after a run; freeing them as cyclic garbage took 0.3–0.4 s CPU at the end of
-    every command), and the memory goes back to the system with the process.  atexit handlers,
-    module clean-up and the standard streams are not affected; only ``__del__`` of objects in
-    reference cycles is not run, which Python never promises at exit."""
-    atexit.unregister(gc.freeze)        # registered once, however often main() runs in a process
+def _as_command() -> None:
+    """Garbage collection for a process that runs one command (:func:`main` without ``argv``).
+
+    Now: :func:`gc.freeze` the objects the imports made (module contents, alive until exit), so
+    the collector's passes during the command skip them (numba's own start-up alone made its passes
+    over them cost 0.1 s CPU); what the command creates is collected as usual.  At exit, after the
+    atexit handlers registered later (the cache's removal of its temporary folders among them),
+    freeze every object again: the final passes then neither traverse nor free the 1–2·10⁵ tracked
+    objects the libraries leave alive (as cyclic garbage, that took 0.2–0.5 s CPU after the last
+    line), and the memory goes back to the system with the process.  atexit handlers, module
+    clean-up and the flushing of files and streams are not affected; only ``__del__`` of objects in
+    reference cycles is not run, which Python never promises at exit.  A caller that passes
+    ``argv`` (a test, a script) keeps its own process's collection as it is."""
+    gc.freeze()
+    atexit.unregister(gc.freeze)        # registered once
     atexit.register(gc.freeze)
 
 
 def main(argv=None) -> int:
-    _no_collection_at_exit()
+    if argv is None:
+        _as_command()
     parser = argparse.ArgumentParser(prog="multipole", description="Weber multipole simulator for drive systems",
                                      epilog="exit codes: 0 ok, 1 structural problems, 2 invalid input or options, "
                                             "3 run-time failure, 130 interrupted (docs/cli.md)")

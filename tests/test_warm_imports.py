@@ -117,3 +117,19 @@ def test_exit_keeps_files_and_clean_up(backend, tmp_path):
     assert t == 1.0
     assert v == pytest.approx(F / D * (1 - math.exp(-D / M)), rel=1e-8)
     assert list(temp.iterdir()) == []                 # the process folder was removed at exit
+
+
+def test_only_the_process_command_freezes_objects():
+    """``main()`` reading ``sys.argv`` (the process's command) freezes what the imports made;
+    ``main(argv)`` called in a process (a test, a script) leaves its collection alone."""
+    import gc
+    from multipole.cli import main
+    frozen = gc.get_freeze_count()
+    assert main(["elements", "mass"]) == 0
+    assert gc.get_freeze_count() == frozen
+    probe = ("import gc, sys\nfrom multipole.cli import main\nsys.argv = ['multipole', 'elements', 'mass']\n"
+             "before = gc.get_freeze_count()\ncode = main()\nprint(code, before, gc.get_freeze_count())")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True)
+    code, before, after = map(int, out.stdout.split()[-3:])
+    assert code == 0 and before == 0
+    assert after > 10_000                 # numpy, sympy and the kernel's modules are in there

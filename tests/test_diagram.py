@@ -88,7 +88,7 @@ def _analysed():
         sc = load(path)
         an = pipeline.check(sc)
         if an.flat.closures or an.flat.position_providers:
-            continue                 # planar and band scenes: refused, see test_position_scenes_are_refused
+            continue                 # planar and band scenes: tests/test_diagram_closures.py
         out.append((path.stem, an, layout(an, sc.element_types)))
     for name, text in (("geared", GEARED), ("large", LARGE)):
         sc = scene(text)
@@ -139,7 +139,7 @@ def _trace(diagram, arrow):
 # ---------------------------------------------------------------------------------------------
 # the command
 
-#: scenes whose elements hand positions through their connections are refused (see below)
+#: the linkage and band scenes are drawn by the command in tests/test_diagram_closures.py
 DRAWN = [p for p in SCENES if p.parent.name not in ("linkages", "belts")]
 
 
@@ -611,12 +611,3 @@ def test_gyrator_ties_each_effort_to_the_other_sides_flow():
     assert not an.computed_by(f"{gy}.a.f") == gy and not an.computed_by(f"{gy}.b.f") == gy
     assert all(pts[0][1] > pts[1][1] for pts, _c, _h in d.links)
 
-
-@pytest.mark.parametrize("path", ["diagrams/linkages/fourbar_crank_rocker.yaml", "diagrams/belts/pulley_block.yaml"])
-def test_position_scenes_are_refused(path, tmp_path, capsys):
-    """Linkage and band scenes are not drawn as block diagrams yet: one error line, exit 2, no file."""
-    from multipole.cli import main
-    out = tmp_path / "d.png"
-    assert main(["diagram", str(ROOT / path), "-o", str(out)]) == 2
-    assert "error[diagram_unsupported]" in capsys.readouterr().err
-    assert not out.exists()

@@ -149,14 +149,15 @@ class _Placer:
         self.n_tracks[el] = 1 + max((lv for _l, _h, lv in self.levels[el]), default=-1)
 
     def blocked_track(self, el, prim, right):
-        """A track for a leg whose port block has other row blocks between it and the element's
-        edge toward the leg (the leg then runs outside the rows instead of through them)."""
+        """A track for a leg whose port block (on the rows, or a cross-coupling drawn as an item of
+        its own) has row blocks between it and the element's edge toward the leg (the leg then runs
+        outside the rows instead of through them)."""
         order = self.items[el][0]
         on_rows = [it for it in order if f"{it}:f" in self.blocks]
-        if prim not in on_rows:
+        if prim not in order:           # hanging under a junction: its wire comes through the host
             return None
-        k = on_rows.index(prim)
-        if (right and k == len(on_rows) - 1) or (not right and k == 0):
+        pos = order.index(prim)
+        if not any(order.index(it) > pos if right else order.index(it) < pos for it in on_rows if it != prim):
             return None
         key = ("leg", prim, right)
         if key not in self.track:

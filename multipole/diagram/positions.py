@@ -69,7 +69,8 @@ def positions(topo: Topology, ordering: Ordering, placed: Placement, top: float)
     """The closure blocks (added to the placement's blocks), the :class:`Closure` records and the
     routed :class:`Signal` list.  ``top`` is the highest y of the diagram drawn so far; everything
     here goes above it.  A wire to or from a block below the first lane rises beside its element,
-    in the gap right of its column, not through the lanes above."""
+    in the gap right of its column, not through the lanes above; one that would cross its frame's
+    label moves right of it first."""
     blocks = placed.blocks
     flat = topo.flat
     closed = {}                                   # state symbol -> closure index
@@ -114,10 +115,18 @@ def positions(topo: Topology, ordering: Ordering, placed: Placement, top: float)
         el = rec.owner.split(".")[0] if rec.owner != "<root>" else ""
         blocks[rec.block] = Block(rec.block, "closure", label, "p", rec.owner, el, note, w=w, h=0.58,
                                   conflict=el in topo.red)
-    def riser(b, k):
+    frames = {g.element: g for g in placed.groups}
+
+    def riser(b, k, x):
         el = b.element
-        if el not in ordering.lane or ordering.lane[el] == 0:
-            return None                       # nothing above the lane's top row but the tracks
+        if el not in ordering.lane:
+            return None
+        if ordering.lane[el] == 0:            # nothing above the lane's top row but the tracks ...
+            g = frames[el]
+            label_end = g.x0 + 0.16 + _text_width(g.label, 9) * 1.15 + 0.12
+            if x > label_end:
+                return None
+            return label_end + 0.07 * (k % 4), b.y + b.h / 2 + 0.3    # ... and the frame's label
         c = ordering.col[el]
         return placed.col_x[c] + placed.col_w[c] + 0.12 + 0.07 * (k % 4), b.y + b.h / 2 + 0.3
 
@@ -126,9 +135,10 @@ def positions(topo: Topology, ordering: Ordering, placed: Placement, top: float)
 
 def _route(blocks, records, wanted, top, riser):
     """Place the closure blocks above the tracks and route every signal over its own track.
-    ``riser(block, k)``: ``None`` for a block whose wire may go straight up (nothing drawn above
-    it), else the x of the k-th vertical wire beside its element (in the gap right of its column)
-    and the height at which a wire leaves the block's top to reach it."""
+    ``riser(block, k, x)``: ``None`` for a block whose wire may go straight up at ``x`` (nothing
+    drawn above it), else the x of the k-th vertical wire beside its element (in the gap right of
+    its column, or right of its frame's label) and the height at which a wire leaves the block's
+    top to reach it."""
     by_source = defaultdict(list)
     for (src, dst), states in wanted.items():
         by_source[src].append((dst, states))
@@ -162,7 +172,7 @@ def _route(blocks, records, wanted, top, riser):
         b = blocks[bid]
         x = b.x + b.w / 2 - 0.06
         if bid not in risers:
-            risers[bid] = riser(b, len(risers))
+            risers[bid] = riser(b, len(risers), x)
         r = risers[bid]
         if r is None:
             return [(x, b.y + b.h / 2), (x, y)]

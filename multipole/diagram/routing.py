@@ -260,10 +260,15 @@ class _Router:
 
     def assign_slots(self):
         """Legs that leave the same row block on the same side run beside each other: the first
-        (the one staying in its lane) on the row line, the others shifted toward their node."""
+        (the one staying in its lane) on the row line, the others shifted toward their node (a box
+        with three or more of them on one side grows taller so that every run enters its side)."""
         shared = defaultdict(list)
+
+        def own_of(leg):
+            return self.topo.block_id(leg["port"].rsplit(".", 1)[0], leg["row"])
+
         for leg in self.legs:
-            own = self.topo.block_id(leg["port"].rsplit(".", 1)[0], leg["row"])
+            own = own_of(leg)
             leg["slot"] = 0
             if self.blocks[own].row == "x" or leg["corridor"] is not None or leg["track"] is not None:
                 continue
@@ -275,6 +280,9 @@ class _Router:
                                           - self.placed.y_row(self.ordering.lane[lg["el"]], lg["row"]))))
             for k, leg in enumerate(legs):
                 leg["slot"] = k
+            b = self.blocks[own_of(legs[0])]
+            if b.kind != "dot":             # every run enters the box's side: tall enough for all
+                b.h = max(b.h, 2 * (0.11 * (len(legs) - 1) + 0.07))
         for leg in self.legs:
             n, row = leg["node"], leg["row"]
             row_y = self.placed.y_row(self.ordering.lane[leg["el"]], row)

@@ -23,8 +23,10 @@ The first warm-up run of that tree compiles numba's integrator kernels for it (a
 from __future__ import annotations
 
 import argparse
+import atexit
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -35,9 +37,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+#: every folder this script makes (model caches, the exported revision) is made in here, removed at exit
+WORK = tempfile.mkdtemp(prefix="multipole-process-start-")
+atexit.register(shutil.rmtree, WORK, True)
 #: the children's working folder: empty, so that ``python -m`` (which puts it first on ``sys.path``)
 #: imports multipole from ``PYTHONPATH`` or the installation, never from the folder it was started in
-NEUTRAL = tempfile.mkdtemp(prefix="multipole-cwd-")
+NEUTRAL = tempfile.mkdtemp(dir=WORK, prefix="multipole-cwd-")
 
 
 def timed(cmd, env) -> tuple[float, float]:
@@ -52,10 +57,15 @@ def timed(cmd, env) -> tuple[float, float]:
 
 def exported(ref: str) -> Path:
     """The files of git revision ``ref`` in a new temporary folder (``git archive``)."""
-    folder = Path(tempfile.mkdtemp(prefix="multipole-before-"))
+    folder = Path(tempfile.mkdtemp(dir=WORK, prefix="multipole-before-"))
     archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref], check=True, capture_output=True).stdout
     subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
     return folder
+
+
+def new_cache() -> str:
+    """An empty model cache folder."""
+    return tempfile.mkdtemp(dir=WORK, prefix="multipole-bench-")
 
 
 def trees(before: str | None) -> dict:
@@ -65,8 +75,8 @@ def trees(before: str | None) -> dict:
     if before:
         folder = Path(before) if Path(before).is_dir() else exported(before)
         path = os.pathsep.join(p for p in (str(folder), os.environ.get("PYTHONPATH", "")) if p)
-        out[f"{before}: "] = dict(os.environ, PYTHONPATH=path, MULTIPOLE_CACHE=tempfile.mkdtemp(prefix="multipole-bench-"))
-    out["" if not before else "working tree: "] = dict(os.environ, MULTIPOLE_CACHE=tempfile.mkdtemp(prefix="multipole-bench-"))
+        out[f"{before}: "] = dict(os.environ, PYTHONPATH=path, MULTIPOLE_CACHE=new_cache())
+    out["" if not before else "working tree: "] = dict(os.environ, MULTIPOLE_CACHE=new_cache())
     return out
 
 
@@ -89,10 +99,11 @@ def main(argv=None) -> None:
     times: dict = {name: [] for name in cases}
     for _ in range(args.rounds):
         for name, (env, backend, fresh) in cases.items():
-            case_env = dict(env, MULTIPOLE_CACHE=tempfile.mkdtemp(prefix="multipole-bench-")) if fresh else env
+            case_env = dict(env, MULTIPOLE_CACHE=new_cache()) if fresh else env
             times[name].append(timed(base + [backend], case_env))
     load = os.getloadavg()[0]
-    print(f"{Path(args.file).name}, {args.rounds} rounds interleaved, medians [lowest-highest], load average {load:.1f}")
+    print(f"{Path(args.file).name}, {args.rounds} rounds interleaved, medians [lowest-highest], "
+          f"load average {load:.1f}")
     print("| case | CPU [s] | wall [s] |\n|---|---|---|")
     for name, rows in times.items():
         cells = []

@@ -15,6 +15,12 @@ tests/test_linkage_dynamics.py and a torque-driven slider-crank.
 3. check + model build (CPU time, an empty cache) of the scenes in diagrams/linkages/.
 
     python benchmarks/linkage_bench.py
+
+4. Only import, check and model build of one scene in fresh processes, optionally interleaved with
+   another checkout (the 8-link target, docs/performance.md "Linkages"):
+
+    git archive fbbbfaa | tar -x -C /tmp/mp-before        # an empty folder
+    python benchmarks/linkage_bench.py --fresh diagrams/linkages/eight_link.yaml --before /tmp/mp-before
 """
 from __future__ import annotations
 
@@ -296,7 +302,64 @@ def check_compile():
     return rows
 
 
+#: one fresh process (argv: the scene): CPU time [s] of the import, the check and the model build
+_PROCESS = """
+import os, sys, tempfile, time
+os.environ["MULTIPOLE_CACHE"] = tempfile.mkdtemp()
+t0 = time.process_time()
+import multipole as mp
+from multipole import pipeline
+t1 = time.process_time()
+sc = mp.load(sys.argv[1])
+pipeline.check(sc)
+t2 = time.process_time()
+pipeline.model(sc)
+t3 = time.process_time()
+print(t1 - t0, t2 - t1, t3 - t2)
+"""
+
+
+def fresh_processes(scene, repeats=7, before=None):
+    """``{tree: [(import, check, model build) CPU time [s] per process]}``: ``repeats`` fresh processes
+    (an empty cache each, so what ``multipole check`` and a first run pay) for this checkout and,
+    with ``before`` (the root of another checkout, e.g. ``git archive <commit> | tar -x -C DIR``),
+    for that one too, the two interleaved (the same load).  A relative ``scene`` is each tree's own."""
+    import subprocess
+    import sys
+    trees = {"this checkout": ROOT}
+    if before is not None:
+        trees = {f"before ({before})": Path(before), **trees}
+    out = {name: [] for name in trees}
+    for _ in range(repeats):
+        for name, root in trees.items():
+            env = dict(os.environ, PYTHONPATH=str(root))
+            res = subprocess.run([sys.executable, "-c", _PROCESS, str(scene)], capture_output=True, text=True,
+                                 env=env, cwd=root, check=True)
+            out[name].append(tuple(float(v) for v in res.stdout.split()))
+    return out
+
+
+def print_fresh_processes(scene, repeats, before):
+    print(f"## {Path(scene).name}: fresh processes, empty cache, CPU time, medians of {repeats} [lowest-highest]")
+    print("| tree | import [s] | check [s] | model build [s] | check + build [s] | import + check + build [s] |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for name, rows in fresh_processes(scene, repeats, before).items():   # a relative SCENE: each tree's own
+        a = np.array(rows)
+        cols = [a[:, 0], a[:, 1], a[:, 2], a[:, 1] + a[:, 2], a.sum(axis=1)]
+        print(f"| {name} | " + " | ".join(f"{np.median(c):.2f} [{c.min():.2f}-{c.max():.2f}]" for c in cols) + " |")
+
+
 def main():
+    import argparse
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--fresh", metavar="SCENE", help="only time import, check and model build of SCENE in "
+                        "fresh processes (e.g. diagrams/linkages/eight_link.yaml)")
+    parser.add_argument("--repeats", type=int, default=7, help="processes per tree with --fresh (default 7)")
+    parser.add_argument("--before", metavar="DIR", help="with --fresh: also time the checkout at DIR, interleaved")
+    args = parser.parse_args()
+    if args.fresh:
+        print_fresh_processes(args.fresh, args.repeats, args.before)
+        return
     print("## cost per right-hand-side call (torque-driven four-bar and slider-crank, CPU time, interleaved, "
           "medians of 7)")
     print("| scene | code | generated [µs] | hand-written [µs] | generated / hand [lowest-highest] | "

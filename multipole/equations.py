@@ -801,7 +801,7 @@ def _loops_at_start(eq: Equations) -> None:
     if not wanted:
         return
     try:
-        evaluate_blocks(eq, 0.0, eq.initial_values(), wanted)
+        block_values(eq, 0.0, eq.initial_values(), wanted)        # values only: no magnitudes needed
     except LoopFailure as exc:
         b = exc.block
         from .checks import Names

@@ -542,9 +542,9 @@ def generate(eq, outputs) -> tuple[str, list]:
 
 #: the largest generated module numba is asked to compile, in :func:`source_cost` units (bytes, an
 #: array subscript counted as 100).  With large functions compiled in chunks (:data:`CHUNK_STATEMENTS`)
-#: numba's compile time grows linearly with this cost (about 13 s of CPU time for the 300-pair chain,
-#: cost 425,000; docs/performance.md), so this limit bounds it to about a minute; a larger model runs
-#: on the numpy backend, visibly.  The environment variable ``MULTIPOLE_NUMBA_MAX_COST`` sets another.
+#: numba's compile time grows linearly with this cost (17 s of CPU time for the 300-pair chain, cost
+#: 425,000; 33 s for the 600-pair chain, cost 855,000; docs/performance.md), so this limit bounds it
+#: to about 80 s; a larger model runs on the numpy backend, visibly.  The environment variable ``MULTIPOLE_NUMBA_MAX_COST`` sets another.
 MAX_SOURCE_COST = 2_000_000
 #: the largest single function (a chunk, a loop's residual, a cfunc) numba is asked to compile: what
 #: cannot be cut (a linear loop's matrix and solve, one long expression) still costs LLVM time

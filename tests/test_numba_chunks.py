@@ -6,6 +6,8 @@ model size")."""
 from __future__ import annotations
 
 import ast
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -200,3 +202,19 @@ def test_the_size_limits_bound_the_compile_time(nb, monkeypatch):
     assert exc.value.reason.startswith("its generated function jac costs ")
     assert f"above the limit of {nb.MAX_FUNCTION_COST:,} for one function" in exc.value.reason
     assert "MULTIPOLE_NUMBA_MAX_FUNCTION_COST" in exc.value.fix
+
+
+def test_a_chunked_model_is_the_same_source_and_a_cache_hit_in_another_process(nb, tmp_path):
+    """The chunked source does not depend on Python's hash seed (it is the cache key), and a second
+    process loads its cfuncs, chunks linked in, from numba's cache without compiling them."""
+    code = ("import hashlib, multipole_models; from multipole import pipeline; from multipole.netlist import loads;"
+            "from multipole.backends import numba_backend as nb; nb.CHUNK_STATEMENTS = 20;"
+            "sc = loads(multipole_models.mass_spring_chain(12), 'chain.yaml');"
+            "source = nb.generate(pipeline.equations(sc), sc.outputs)[0]; m = nb.load(source);"
+            "print(hashlib.sha256(source.encode()).hexdigest(), source.count('def _rhs_'),"
+            " m.rhs.cache_hits, m.jac.cache_hits)")
+    env = {**os.environ, "MULTIPOLE_CACHE": str(tmp_path)}
+    first, second = (subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                                    env={**env, "PYTHONHASHSEED": seed}).stdout.split() for seed in ("1", "2"))
+    assert first[0] == second[0] and int(first[1]) >= 2
+    assert first[2:] == ["0", "0"] and second[2:] == ["1", "1"]

@@ -25,19 +25,34 @@ TABLES = ("toothed_belt_wheel1.csv", "toothed_belt_wheel2.csv")
 PIVOT, L_LEVER, J1, J2, J_LEVER = np.array([0.8, 0.3]), 0.3, 2.0e-3, 0.05, 1.0e-2
 
 
+EGG = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+
+
+def _egg(theta):
+    """An egg-shaped convex contour [m] without central symmetry (p(nu + pi) != p(nu)), so that the
+    contact on the wrong side of a roll would show."""
+    return 0.08 * (1 + 0.1 * np.cos(theta) + 0.05 * np.sin(2 * theta))
+
+
 @pytest.fixture(scope="module")
 def wheels():
     return tuple(read_table(BELTS / t) for t in TABLES)
 
 
+@pytest.fixture(scope="module")
+def lever_wheels(wheels):
+    return Contour(EGG, _egg(EGG), "egg"), wheels[1]
+
+
 def _folder(tmp_path):
     for t in TABLES:
         shutil.copy(BELTS / t, tmp_path / t)
+    write_table(tmp_path / "egg.csv", EGG, _egg(EGG))
     return tmp_path
 
 
-#: the toothed belt's wheels: wheel 1 frame-fixed at the origin, wheel 2 on a lever (DAN pivoted at
-#: (0.8, 0.3), 0.3 m, a torsion spring); the open belt top/bottom, and a crossed span `cross`
+#: an egg (wheel 1) frame-fixed at the origin and the toothed belt's wheel 2 on a lever (DAN pivoted
+#: at (0.8, 0.3), 0.3 m, a torsion spring); the open belt top/bottom, and a crossed span `cross`
 #: between the same contours (its band ends tied: it only shows the crossed tangent)
 LEVER = """
 name: curve_lever
@@ -45,14 +60,14 @@ parameters: {EA: 1.0e5, cd: 5.0, F0: 300.0, mu: %r}
 elements:
   lever: {type: DAN, l: 0.3, phi0: -1.5707963267948966, m: 0.0, J: 1.0e-2, x1: 0.8, y1: 0.3}
   spring: {type: spring, c: 500.0, x0: 0.0}
-  wheel1: {type: planar_curve_roll, contour: toothed_belt_wheel1.csv, J: 2.0e-3}
-  wheel2: {type: planar_curve_roll, contour: toothed_belt_wheel2.csv, J: 0.05, mu: mu, r_pin: 0.005}
-  top: {type: planar_curve_band, EA: EA, cd: cd, F0: F0, contour1: toothed_belt_wheel1.csv, s1: -1,
-        contour2: toothed_belt_wheel2.csv, s2: 1}
+  wheel1: {type: planar_curve_roll, contour: egg.csv, J: 2.0e-3, tol: 1.0e-10}
+  wheel2: {type: planar_curve_roll, contour: toothed_belt_wheel2.csv, J: 0.05, mu: mu, r_pin: 0.005, tol: 1.0e-10}
+  top: {type: planar_curve_band, EA: EA, cd: cd, F0: F0, contour1: egg.csv, s1: -1,
+        contour2: toothed_belt_wheel2.csv, s2: 1, tol: 1.0e-10}
   bottom: {type: planar_curve_band, EA: EA, cd: cd, F0: F0, contour1: toothed_belt_wheel2.csv, s1: -1,
-           contour2: toothed_belt_wheel1.csv, s2: 1}
-  cross: {type: planar_curve_band, EA: 10.0, contour1: toothed_belt_wheel1.csv, s1: 1,
-          contour2: toothed_belt_wheel2.csv, s2: 1}
+           contour2: egg.csv, s2: 1, tol: 1.0e-10}
+  cross: {type: planar_curve_band, EA: 10.0, contour1: egg.csv, s1: 1,
+          contour2: toothed_belt_wheel2.csv, s2: 1, tol: 1.0e-10}
 connections:
   - [lever.drive, spring.a]
   - [spring.b, lever.support]
@@ -127,7 +142,7 @@ SPANS = {"top": (("wheel1", "wheel2"), (-1, 1)), "bottom": (("wheel2", "wheel1")
          "cross": (("wheel1", "wheel2"), (1, 1))}
 
 
-def test_contact_points_are_the_tangent_points_of_the_posed_contours(tmp_path, wheels):
+def test_contact_points_are_the_tangent_points_of_the_posed_contours(tmp_path, lever_wheels):
     """Random lever angles (wheel 2's centre moves) and wheel angles: each span's contact points are
     the points where its line touches the two posed contours (open belt: both spans; crossed: the
     third span), found independently, to 1e-8 m; the length is |K2 - K1| and gamma its direction."""
@@ -140,7 +155,7 @@ def test_contact_points_are_the_tangent_points_of_the_posed_contours(tmp_path, w
         tip = PIVOT + L_LEVER * np.array([math.cos(st["lever.L.K.q3"]), math.sin(st["lever.L.K.q3"])])
         np.testing.assert_allclose([o["wheel2.x"], o["wheel2.y"]], tip, atol=1e-12)
         for name, (ends, senses) in SPANS.items():
-            g, K1, K2 = _geometry(o, st, *wheels, name, ends, senses)
+            g, K1, K2 = _geometry(o, st, *lever_wheels, name, ends, senses)
             got1, got2 = np.array([o[f"{name}.xK1"], o[f"{name}.yK1"]]), np.array([o[f"{name}.xK2"], o[f"{name}.yK2"]])
             err = max(np.max(np.abs(got1 - K1)), np.max(np.abs(got2 - K2)))
             worst = max(worst, err)
@@ -151,7 +166,7 @@ def test_contact_points_are_the_tangent_points_of_the_posed_contours(tmp_path, w
 
 
 @pytest.mark.parametrize("seed, mu", [(0, 0.0), (1, 0.3)])
-def test_power_balance_and_stretch_rate_at_random_states(tmp_path, wheels, seed, mu):
+def test_power_balance_and_stretch_rate_at_random_states(tmp_path, lever_wheels, seed, mu):
     """Random states of the lever scene: each span's stretch rate is t . (v2 - v1) - s1 p1 omega1 -
     s2 p2 omega2 with t, the lever arms p (distances from the centres to the tangent) and the centre
     velocity from the geometry constructed here; its tension max(0, (EA delta + cd delta')/l_x),
@@ -170,22 +185,22 @@ def test_power_balance_and_stretch_rate_at_random_states(tmp_path, wheels, seed,
         w = {"wheel1": st["wheel1.R.J.p"] / J1, "wheel2": st["wheel2.R.J.p"] / J2}
         force = {"wheel1": np.zeros(2), "wheel2": np.zeros(2)}
         for name, (ends, senses) in SPANS.items():
-            g, K1, K2 = _geometry(o, st, *wheels, name, ends, senses)
+            g, K1, K2 = _geometry(o, st, *lever_wheels, name, ends, senses)
             t, n = np.array([math.cos(g), math.sin(g)]), np.array([-math.sin(g), math.cos(g)])
             (a, b), (s1, s2) = ends, senses
             p1, p2 = -s1 * np.dot(n, K1 - C[a]), s2 * np.dot(n, K2 - C[b])      # lever arms, > 0
             assert p1 > 0.05 and p2 > 0.05
             tied = name == "cross"                      # its band ends are held: no material flows
             rate = np.dot(t, v[b] - v[a]) - (0 if tied else s1 * p1 * w[a] + s2 * p2 * w[b])
-            # the model's lever arms are the series of p, within tol = 1e-9 m of the spline used here
-            assert dx[f"{name}.c.q"] == pytest.approx(rate, rel=1e-12, abs=2e-9 * (abs(w[a]) + abs(w[b])) + 1e-12), name
+            # the model's lever arms are the series of p, within tol = 1e-10 m of the spline used here
+            assert dx[f"{name}.c.q"] == pytest.approx(rate, rel=1e-12, abs=2e-10 * (abs(w[a]) + abs(w[b])) + 1e-12), name
             delta = st[f"{name}.c.q"]
             EA, cd = (10.0, 0.0) if tied else (1.0e5, 5.0)
             lx = np.linalg.norm(K2 - K1) - delta
             F = max(0.0, (EA * delta + cd * rate) / lx) if delta > 0 else 0.0
             # l_B from the contact points found here (within 1e-8 m, the test above): F within 1e-8/l_x relative
             # and the rate within the bound above
-            err = (F * 1e-8 + cd * 2e-9 * (abs(w[a]) + abs(w[b]))) / lx + 1e-9
+            err = (F * 1e-8 + cd * 2e-10 * (abs(w[a]) + abs(w[b]))) / lx + 1e-9
             assert vals[f"{name}.J.s.e"] == pytest.approx(F, rel=0, abs=err), name
             ports = ["K.b1", "K.b2", "K.b3", "K.b4", "K.b5", "K.b6", "J.e1", "J.e2", "G.e1", "G.e2"]
             assert sum(vals[f"{name}.{p}.e"] * vals[f"{name}.{p}.f"] for p in ("G.e1", "G.e2", "K.b5", "K.b6")) \
@@ -336,15 +351,18 @@ def test_non_convex_contour_on_a_planar_curve_roll_is_refused(tmp_path):
 
 def test_overlapping_contours_leave_no_tangent(tmp_path):
     """A crossed span between the two toothed wheels 0.2 m apart: their contours overlap (lever arms
-    about 0.08 + 0.16 m), so no common tangent exists: check refuses with cannot_assemble."""
+    about 0.08 + 0.16 m), so no common tangent exists: the run is refused with cannot_assemble."""
     text = (f"name: overlap\nelements:\n  s: {{type: planar_curve_band, contour1: {TABLES[0]}, s1: 1, "
             f"contour2: {TABLES[1]}, s2: 1, x2: 0.2}}\nsimulate: {{t_end: 0.01}}\n")
     sc = loads(text, str(_folder(tmp_path) / "o.yaml"))
     with pytest.raises(MultipoleError) as exc:
         pipeline.run(sc, progress=False)
     assert exc.value.code == "cannot_assemble"
-    ok = loads(text.replace("x2: 0.2", "x2: 0.5"), str(tmp_path / "ok.yaml"))
+    # 0.8 m apart the span exists; its tension at t = 0 is F0 within the start value's accuracy (the
+    # stretch takes l_B after the first of two Newton steps: 7e-8 relative measured, docs/belts.md)
+    ok = loads(text.replace("x2: 0.2", "x2: 0.8, y2: 0.1, phi1: 0.7, phi2: 2.0, F0: 300.0"), str(tmp_path / "ok.yaml"))
     assert "cannot_assemble" not in [d.code for d in pipeline.check(ok).diagnostics]
+    assert pipeline.run(ok, progress=False, outputs=["s.F"]).outputs["s.F"][0] == pytest.approx(300.0, rel=1e-6)
 
 
 @pytest.mark.parametrize("change, says", [

@@ -208,7 +208,7 @@ def planar_span(kind: str, ends: tuple, params: dict, reads=None) -> Network:
     closure = Closure(["tap.q"], [-s * dx + c * dy + delta],
                       "the span on the common tangent of the two " + ("circles" if not turning else "contours"),
                       # (10 um)^2: a span of (nearly) zero length has no direction (atan2(0, 0) := 0 is refused)
-                      conditions=conditions + [(radicand - 1e-10, "the " + ("circles leave" if not turning else "contours leave")
+                      conditions=conditions + [(radicand - 1e-10, "the " + ("contours" if turning else "circles") + " leave"
                                    + " no room for a tangent of positive length: |C2 - C1| must exceed "
                                    + ("|s1 r1 + s2 r2|" if not turning else "|s1 p1 + s2 p2| (the contours overlap)")
                                    + " (spans shorter than 10 um are refused)", "m^2")],

@@ -96,7 +96,10 @@ def _point(contour, centre, phi, theta):
 
 def _farthest(contour, centre, phi, direction):
     """The point of the posed contour farthest along ``direction`` (its contact point with the tangent
-    of that outward normal): dense sampling of the spline, then bounded minimisation."""
+    of that outward normal): dense sampling of the spline, then bounded minimisation.  No contour: the
+    centre itself (a band end tied to a point)."""
+    if contour is None:
+        return np.asarray(centre, dtype=float)
     th = np.linspace(0.0, 2 * math.pi, 20001)
     r = contour.radius(th)
     k = int(np.argmax(r * np.cos(th + phi - math.atan2(direction[1], direction[0]))))
@@ -193,7 +196,8 @@ def test_power_balance_and_stretch_rate_at_random_states(tmp_path, lever_wheels,
             tied = name == "cross"                      # its band ends are held: no material flows
             rate = np.dot(t, v[b] - v[a]) - (0 if tied else s1 * p1 * w[a] + s2 * p2 * w[b])
             # the model's lever arms are the series of p, within tol = 1e-10 m of the spline used here
-            assert dx[f"{name}.c.q"] == pytest.approx(rate, rel=1e-12, abs=2e-10 * (abs(w[a]) + abs(w[b])) + 1e-12), name
+            bound = 2e-10 * (abs(w[a]) + abs(w[b])) + 1e-12
+            assert dx[f"{name}.c.q"] == pytest.approx(rate, rel=1e-12, abs=bound), name
             delta = st[f"{name}.c.q"]
             EA, cd = (10.0, 0.0) if tied else (1.0e5, 5.0)
             lx = np.linalg.norm(K2 - K1) - delta
@@ -335,6 +339,42 @@ def test_planar_toothed_belt_ratio_against_the_synthesis_input(planar_toothed_be
     print(f"ratio omega1/omega2 against the synthesis input: largest deviation {dev_input:.3f}")
     # the 1-D scene follows i(phi1) within 1.6e-3 (docs/belts.md); the inclined spans' lever arms do not
     assert dev_input > 0.01
+
+
+CAM = """
+name: cam
+elements:
+  motor: {type: speed_source, value: -2.0}
+  drum: {type: planar_curve_drum, contour: egg.csv, J: 1.0e-3, phi0: 0.4}
+  rope: {type: planar_curve_band, EA: 1.0e4, F0: 50.0, contour1: egg.csv, s1: 1, x2: 0.6, y2: 0.2}
+connections:
+  - [motor.p, drum.drive]
+  - [drum.e1, rope.e1]
+  - [drum.c, rope.p1]
+outputs: [drum.phi, drum.lr1, drum.h1, rope.gamma, rope.length, rope.F]
+simulate: {t_end: 0.5, rtol: 1.0e-10, atol: 1.0e-13, dt_out: 0.05}
+"""
+
+
+def test_curve_drum_winds_in_the_arc_length_between_the_contacts(tmp_path, lever_wheels):
+    """An egg-shaped drum turned clockwise winds in a rope tied to the frame point (0.6, 0.2): the
+    wound length lr1 is w (S(nu0) - S(nu)) with the contact normal nu of the tangent from the point to
+    the posed contour, found in the test, and S the spline's arc length (its own quadrature); the lever
+    arm h1 is the distance from the axis to that tangent."""
+    egg = lever_wheels[0]
+    res = pipeline.run(loads(CAM, str(_folder(tmp_path) / "cam.yaml")), progress=False)
+    o = res.outputs
+    nus = []
+    for k in range(len(res.t)):
+        g, K1, _K2 = _tangent(egg, (0.0, 0.0), o["drum.phi"][k], 1, None, (0.6, 0.2), 0.0, 1, o["rope.gamma"][k])
+        n = np.array([-math.sin(g), math.cos(g)])
+        assert o["drum.h1"][k] == pytest.approx(-np.dot(n, K1), abs=1e-9)       # n . (K1 - C1) = -s1 p
+        nus.append(g - math.pi / 2 - o["drum.phi"][k])          # the contact normal -s1 n, roll frame
+    nus = np.array(nus)
+    wound = egg.arc(nus[0]) - egg.arc(nus)
+    assert np.ptp(wound) > 0.03                                                   # 0.5 s at 2 rad/s
+    np.testing.assert_allclose(o["drum.lr1"], wound, rtol=0, atol=1e-8)
+    assert np.all(o["rope.F"] > 50.0)                                             # winding in tightens it
 
 
 # -- bad input -----------------------------------------------------------------------------------

@@ -58,7 +58,8 @@ def main():
     print(f"real belt length {np.mean(real):.4f} m, variation over a turn of wheel 1 {var * 1e3:.2f} mm "
           f"({var / np.mean(real) * 100:.3f} %); ratio against the synthesis input: largest deviation {dev:.3f}; "
           f"strand forces {min(o['top.F'].min(), o['bottom.F'].min()):.0f} .. "
-          f"{max(o['top.F'].max(), o['bottom.F'].max()):.0f} N; wheel 2 turned {math.degrees(o['wheel2.phi'][-1]):.2f} deg")
+          f"{max(o['top.F'].max(), o['bottom.F'].max()):.0f} N; "
+          f"wheel 2 turned {math.degrees(o['wheel2.phi'][-1]):.2f} deg")
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.6))
     th = np.linspace(0, 2 * math.pi, 721)
     for k, colour in zip(np.searchsorted(t, [0.0, 0.125, 0.25]), ("C0", "C1", "C2")):

@@ -411,11 +411,12 @@ class _Analyser:
                     pt[s] = self.values[s]
                 elif s in states and not states[s].storage:
                     if s not in starts:
-                        starts[s] = complex(sp.sympify(states[s].initial).xreplace(
-                            {p: self.values[p] for p in self.values}))
+                        start = sp.sympify(sp.sympify(states[s].initial).xreplace({p: self.values[p] for p in self.values}))
+                        starts[s] = complex(start) if start.is_number else 0j
                     q0 = starts[s]
                     # a start value that is not real (a closure that cannot be assembled: the check
-                    # reports it as cannot_assemble) is sampled from its real part
+                    # reports it as cannot_assemble) is sampled from its real part; one that reads
+                    # itself around a position loop (reported as position_loop) from 0
                     pt[s] = q0.real + 2 * np.pi * k / self.n_samples + 0.1
                 else:
                     pt[s] = float(self.rng.normal())

@@ -524,8 +524,12 @@ def position_loop(ctx: Context):
     found = [p for p in ctx.flat.position_problems if p.code == "position_loop"]
     if not found and ctx.flat.closures and closure_order(ctx.flat.closures) is None:
         found = [PositionProblem("position_loop", sorted({o for _s, _r, o in ctx.flat.closures}), [])]
+    told = set()
     for p in found:
-        owners = p.owners or sorted(ctx.flat.position_providers.values())
+        owners = p.owners or sorted(set(ctx.flat.position_providers.values()))
+        if not p.ports and frozenset(owners) in told:
+            continue        # the start values' circle that follows from a loop already reported
+        told.add(frozenset(owners))
         yield Diagnostic(
             "position_loop",
             f"the positions of {listing(owners)} depend on each other in a closed chain"

@@ -622,20 +622,24 @@ class _Flattener:
         for s in fl.states:
             s.rhs = sp.sympify(s.rhs).xreplace(resolved)
             s.initial = sp.sympify(s.initial).xreplace(resolved)
-        initial = {s.symbol: s.initial for s in fl.states}
-        for _ in range(len(initial) + 1):
-            changed = False
-            for s in fl.states:
-                deps = s.initial.free_symbols & initial.keys()
-                if deps:
-                    s.initial = s.initial.xreplace({d: initial[d] for d in deps})
-                    initial[s.symbol] = s.initial
-                    changed = True
-            if not changed:
-                break
-        else:           # only after a position loop, which the check reports
-            fl.position_problems.append(PositionProblem("position_loop", [], [], "initial values of states depend "
-                                                        "on each other in a circle"))
+        # initial values that read other states' initial values (a dyad's start pose from its drive's):
+        # substituted once each, in dependency order; a circle (only after a position loop, which the
+        # check reports) is left unsubstituted, since repeated substitution around it grows without end
+        by_symbol = {s.symbol: s for s in fl.states}
+        reads = nx.DiGraph()
+        reads.add_nodes_from(by_symbol)
+        reads.add_edges_from((d, s.symbol) for s in fl.states for d in s.initial.free_symbols & by_symbol.keys())
+        if not nx.is_directed_acyclic_graph(reads):
+            circle = [a for a, _b in nx.find_cycle(reads)]
+            fl.position_problems.append(PositionProblem(
+                "position_loop", sorted({fl.element_of(str(v)) for v in circle}), [],
+                "initial values of states depend on each other in a circle"))
+            return
+        for sym in nx.topological_sort(reads):
+            s = by_symbol[sym]
+            deps = s.initial.free_symbols & by_symbol.keys()
+            if deps:
+                s.initial = s.initial.xreplace({d: by_symbol[d].initial for d in deps})
 
 
 def closure_order(closures) -> list | None:

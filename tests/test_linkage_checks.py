@@ -249,6 +249,27 @@ def test_dyads_anchored_on_each_other_have_no_structural_order():
     assert "class 3 or higher" in d.message
 
 
+#: a dyad whose output is joined to both its anchors (found by the fuzz test: the start values read
+#: each other around the circle, and substituting them again and again never ended)
+SELF_ANCHORED = """
+name: self_anchored
+elements:
+  d: {type: SSD, xs1: 0.043, m1: 0.0125, J2: 1.34, y1: 0.0003, y2: 1.22}
+connections:
+  - [d.a2, d.b1, d.a1]
+outputs: [d.omega]
+"""
+
+
+def test_a_dyad_anchored_on_its_own_output_is_one_position_loop_and_its_start_values_stay_as_written():
+    sc = scene(SELF_ANCHORED)
+    analysis = pipeline.check(sc)
+    [d] = [d for d in analysis.diagnostics if d.code == "position_loop"]
+    assert d.elements == ["d"] and "d.a1" in d.message
+    # the circle's start values are not substituted into each other (each round doubled them)
+    assert max(sp.count_ops(s.initial) for s in analysis.flat.states) < 200
+
+
 def test_an_anchor_joined_only_to_an_anchor_has_no_position():
     ds = found(ANCHOR_TO_ANCHOR, "position_undetermined")
     assert ds and all(d.severity == "error" for d in ds)

@@ -80,7 +80,9 @@ connections:
   - [wheel2.c, top.p2, bottom.p1, cross.p2]
 outputs: [top.xK1, top.yK1, top.xK2, top.yK2, top.length, top.gamma, bottom.xK1, bottom.yK1, bottom.xK2,
           bottom.yK2, bottom.length, bottom.gamma, cross.xK1, cross.yK1, cross.xK2, cross.yK2, cross.length,
-          cross.gamma, wheel2.x, wheel2.y, wheel2.friction, top.rate, bottom.rate]
+          cross.gamma, wheel2.x, wheel2.y, wheel2.friction, top.rate, bottom.rate, top.stretch, bottom.stretch, cross.stretch,
+          wheel1.Fx, wheel1.Fy, wheel2.Fx, wheel2.Fy, wheel1.F1, wheel1.F2, wheel2.F1, wheel2.F2,
+          wheel1.h1, wheel1.h2, wheel2.h1, wheel2.h2]
 simulate: {t_end: 1.0}
 """
 
@@ -187,12 +189,15 @@ def test_power_balance_and_stretch_rate_at_random_states(tmp_path, lever_wheels,
         v = {"wheel1": np.zeros(2), "wheel2": L_LEVER * omega * np.array([-math.sin(phi), math.cos(phi)])}
         w = {"wheel1": st["wheel1.R.J.p"] / J1, "wheel2": st["wheel2.R.J.p"] / J2}
         force = {"wheel1": np.zeros(2), "wheel2": np.zeros(2)}
+        tension, arm = {}, {}                   # by span; by (span, roll) from the geometry built here
         for name, (ends, senses) in SPANS.items():
             g, K1, K2 = _geometry(o, st, *lever_wheels, name, ends, senses)
             t, n = np.array([math.cos(g), math.sin(g)]), np.array([-math.sin(g), math.cos(g)])
             (a, b), (s1, s2) = ends, senses
             p1, p2 = -s1 * np.dot(n, K1 - C[a]), s2 * np.dot(n, K2 - C[b])      # lever arms, > 0
             assert p1 > 0.05 and p2 > 0.05
+            arm[name, a], arm[name, b] = p1, p2
+            assert o[f"{name}.stretch"] == st[f"{name}.c.q"]             # the stretch is the span's state
             tied = name == "cross"                      # its band ends are held: no material flows
             rate = np.dot(t, v[b] - v[a]) - (0 if tied else s1 * p1 * w[a] + s2 * p2 * w[b])
             # the model's lever arms are the series of p, within tol = 1e-10 m of the spline used here
@@ -215,6 +220,17 @@ def test_power_balance_and_stretch_rate_at_random_states(tmp_path, lever_wheels,
             # found here: within 1e-8 rad)
             force[a] += vals[f"{name}.J.s.e"] * t
             force[b] -= vals[f"{name}.J.s.e"] * t
+            tension[name] = vals[f"{name}.J.s.e"]
+        # the rolls' outputs: the tensions of the spans at their band ports (wheel1.e1 - bottom,
+        # wheel1.e2 - top, wheel2.e1 - top, wheel2.e2 - bottom), the lever arms from the contact
+        # points found here (within 1e-8 m) and the spans' pull on the axes (the crossed span's too)
+        for roll, (at1, at2) in {"wheel1": ("bottom", "top"), "wheel2": ("top", "bottom")}.items():
+            assert (o[f"{roll}.F1"], o[f"{roll}.F2"]) == (pytest.approx(tension[at1], rel=1e-12),
+                                                        pytest.approx(tension[at2], rel=1e-12))
+            assert o[f"{roll}.h1"] == pytest.approx(arm[at1, roll], abs=2e-8)
+            assert o[f"{roll}.h2"] == pytest.approx(arm[at2, roll], abs=2e-8)
+            np.testing.assert_allclose([o[f"{roll}.Fx"], o[f"{roll}.Fy"]], force[roll], rtol=0,
+                                       atol=1e-8 * np.linalg.norm(force[roll]) + 1e-9)
         for roll, J in (("wheel1", J1), ("wheel2", J2)):
             fric = roll == "wheel2"                     # its mu is a scene parameter: the friction law is built
             ports = ["xJ.a", "yJ.a", "H.a" if fric else "H.p", "xJ.c", "yJ.c", "D.c", "R.T1.a", "R.T2.a", "G1.o",
@@ -351,7 +367,7 @@ connections:
   - [motor.p, drum.drive]
   - [drum.e1, rope.e1]
   - [drum.c, rope.p1]
-outputs: [drum.phi, drum.lr1, drum.h1, rope.gamma, rope.length, rope.F]
+outputs: [drum.phi, drum.lr1, drum.h1, rope.gamma, rope.length, rope.F, drum.F1, drum.Fx, drum.Fy]
 simulate: {t_end: 0.5, rtol: 1.0e-10, atol: 1.0e-13, dt_out: 0.05}
 """
 
@@ -370,6 +386,10 @@ def test_curve_drum_winds_in_the_arc_length_between_the_contacts(tmp_path, lever
         n = np.array([-math.sin(g), math.cos(g)])
         assert o["drum.h1"][k] == pytest.approx(-np.dot(n, K1), abs=1e-9)       # n . (K1 - C1) = -s1 p
         nus.append(g - math.pi / 2 - o["drum.phi"][k])          # the contact normal -s1 n, roll frame
+        # the rope's tension at e1 and its pull on the axis along the rope, towards the frame point
+        F, t_rope = o["rope.F"][k], np.array([math.cos(g), math.sin(g)])
+        assert o["drum.F1"][k] == pytest.approx(F, rel=1e-12)
+        np.testing.assert_allclose([o["drum.Fx"][k], o["drum.Fy"][k]], F * t_rope, rtol=0, atol=1e-8 * F)
     nus = np.array(nus)
     wound = egg.arc(nus[0]) - egg.arc(nus)
     assert np.ptp(wound) > 0.03                                                   # 0.5 s at 2 rad/s
@@ -418,6 +438,20 @@ def test_span_that_disagrees_with_its_curve_roll_is_refused(tmp_path, change, sa
     # tol is one parameter for both ends: both ends disagree with their rolls
     assert len(found) == (2 if says == "tol" else 1)
     assert all(says in d.message and d.severity == "error" for d in found)
+
+
+def planar_curve_triggers() -> dict:
+    """The curve span's static check's triggering netlist, for tests/test_diagnostics_text.py: the
+    planar toothed belt with the top span's wrap sense at wheel 1 reversed (in a private folder with
+    the contour tables)."""
+    def make():
+        import tempfile
+        text = (BELTS / "toothed_belt_planar.yaml").read_text()
+        old = "contour1: toothed_belt_wheel1.csv, s1: -1,"
+        assert old in text
+        return loads(text.replace(old, "contour1: toothed_belt_wheel1.csv, s1: 1,"),
+                     str(_folder(Path(tempfile.mkdtemp())) / "x.yaml"))
+    return {"planar_curve_band_roll": (make, ["s1 = +1"])}
 
 
 def test_planar_band_cannot_end_on_a_curve_roll(tmp_path):

@@ -156,6 +156,7 @@ TRIGGERS = {
     **linkage_triggers(),
     **__import__("test_belt_contour").contour_triggers(),     # the curve roll's side check
     **__import__("test_belt_planar").planar_triggers(),       # the planar span against its roll
+    **__import__("test_belt_planar_curve").planar_curve_triggers(),   # the curve span against its roll
     **__import__("test_belt_monitors").belt_triggers(),     # the static belt checks (elements/belt_checks.py)
 }
 

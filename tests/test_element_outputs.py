@@ -565,7 +565,9 @@ CHECKED_IN = {**{k: ("test_linkage_dynamics.py", "test_linkage_slide.py", "test_
               "belt_pulley": ("test_belt_friction.py",),
               **{k: ("test_belt_planar.py",) for k in ("planar_band", "planar_roll", "planar_drum")},
               **{k: ("test_belt_spans.py",) for k in ("nozzle_band", "spring_band")},
-              **{k: ("test_belt_contour.py",) for k in ("curve_roll", "curve_drum")}}
+              **{k: ("test_belt_contour.py",) for k in ("curve_roll", "curve_drum")},
+              **{k: ("test_belt_planar_curve.py",) for k in ("planar_curve_roll", "planar_curve_drum",
+                                                             "planar_curve_band")}}
 
 
 def test_every_documented_output_is_checked():

@@ -64,6 +64,16 @@ def _sense(kind: str, name: str, value) -> int:
     return int(value)
 
 
+def span_quantities(point: str, body: str) -> dict:
+    """The quantities of a planar span whose ends touch a ``body`` ("circle", "contour") at a ``point``
+    ("tangent point", "contact point"): planar_band and planar_curve_band declare the same ones."""
+    return {"F": "N: band tension (>= 0)", "stretch": "m: l_B - l_x (> 0 taut, <= 0 slack)",
+            "length": f"m: span length l_B between the {point}s", "free": "m: free length l_x = l_B - stretch",
+            "gamma": f"rad: inclination of the span from {body} 1 to {body} 2 (continuous, not wrapped)",
+            "rate": "m/s: stretch rate",
+            **{f"{c}K{k}": f"m: {c} of the {point} on {body} {k}" for k in (1, 2) for c in ("x", "y")}}
+
+
 def tangent(x1, y1, r1, s1, x2, y2, r2, s2):
     """The common tangent from circle 1 to circle 2 with wrap senses ``s1``, ``s2`` (see the module
     docstring): ``(l_B, gamma, K1, K2)`` [m, rad, (x, y) m] as sympy expressions (or floats).  The
@@ -99,12 +109,7 @@ def tangent(x1, y1, r1, s1, x2, y2, r2, s2):
           Param("y1", "m", "frame position y of centre 1 when p1 is not connected", 0.0),
           Param("x2", "m", "frame position x of centre 2 when p2 is not connected", 1.0),
           Param("y2", "m", "frame position y of centre 2 when p2 is not connected", 0.0)],
-         {"F": "N: band tension (>= 0)", "stretch": "m: l_B - l_x (> 0 taut, <= 0 slack)",
-          "length": "m: span length l_B between the tangent points", "free": "m: free length l_x = l_B - stretch",
-          "gamma": "rad: inclination of the span from circle 1 to circle 2 (continuous, not wrapped)",
-          "rate": "m/s: stretch rate", "xK1": "m: x of the tangent point on circle 1",
-          "yK1": "m: y of the tangent point on circle 1", "xK2": "m: x of the tangent point on circle 2",
-          "yK2": "m: y of the tangent point on circle 2"})
+         span_quantities("tangent point", "circle"))
 def planar_band(EA, cd, F0, r1, s1, r2, s2, x1, y1, x2, y2):
     """Planar elastic span [EA, F0 in N, cd in N*s, lengths in m]."""
     s1, s2 = _sense("planar_band", "s1", s1), _sense("planar_band", "s2", s2)

@@ -36,7 +36,7 @@ from .belt import _BAND
 from .belt_checks import _value
 from .belt_contour import _CONTOUR_DOC, _sym_series, as_contour
 from .belt_planar import (_BEARING, _PLANAR, _PLANAR_ROLLS, _ROLL_QUANTITIES, SpanEnd, _planar_roll, _roll_params,
-                          _sense, planar_span, span_roll_pairs)
+                          _sense, planar_span, span_quantities, span_roll_pairs)
 
 _S = sp.Symbol
 _HALF = sp.Float(math.pi / 2)
@@ -175,12 +175,7 @@ def _end(k: int, contour, tol, sense: int) -> SpanEnd:
           Param("x2", "m", "frame position x of centre 2 when p2 is not connected", 1.0),
           Param("y2", "m", "frame position y of centre 2 when p2 is not connected", 0.0),
           Param("phi2", "rad", "angle of contour 2 when p2 is not connected", 0.0)],
-         {"F": "N: band tension (>= 0)", "stretch": "m: l_B - l_x (> 0 taut, <= 0 slack)",
-          "length": "m: span length l_B between the contact points", "free": "m: free length l_x = l_B - stretch",
-          "gamma": "rad: inclination of the span from end 1 to end 2 (continuous, not wrapped)",
-          "rate": "m/s: stretch rate", "xK1": "m: x of the contact point on contour 1",
-          "yK1": "m: y of the contact point on contour 1", "xK2": "m: x of the contact point on contour 2",
-          "yK2": "m: y of the contact point on contour 2"})
+         span_quantities("contact point", "contour"))
 def planar_curve_band(EA, cd, F0, contour1, contour2, r1, s1, r2, s2, tol, x1, y1, phi1, x2, y2, phi2):
     """Planar elastic span between contours [EA, F0 in N, cd in N*s, lengths in m, angles in rad]."""
     s1, s2 = _sense("planar_curve_band", "s1", s1), _sense("planar_curve_band", "s2", s2)

@@ -40,102 +40,53 @@ def _residual(fun, z):
 NEWTON_NUDGE = 1.5e-8
 
 
-def _newton_step(F, J, scalar: bool):
+def _newton_step(F, J):
     """The Newton step ``J⁻¹F``, or None where ``J`` is singular."""
     try:
         with np.errstate(divide="raise", invalid="raise"):
-            dz = F / J if scalar else np.linalg.solve(J, F)
-    except (np.linalg.LinAlgError, ZeroDivisionError, FloatingPointError):
+            dz = np.linalg.solve(J, F)
+    except (np.linalg.LinAlgError, FloatingPointError):
         return None
     return dz if np.all(np.isfinite(dz)) else None
 
 
-def _small_step(F: list, J: list):
-    """The Newton step ``J⁻¹F`` for a small loop given as lists (Gaussian elimination with partial
-    pivoting in plain floats: numpy's call overhead is most of a two-unknown loop's cost), or None
-    where ``J`` is singular."""
-    n = len(F)
-    if n == 2:                    # a dyad of a mechanism: Cramer's rule
-        (a, b), (c, d) = J
-        det = a * d - b * c
-        if det == 0.0:
-            return None
-        dz = [(F[0] * d - b * F[1]) / det, (a * F[1] - c * F[0]) / det]
-        return dz if math.isfinite(dz[0]) and math.isfinite(dz[1]) else None
-    A = [list(row) + [f] for row, f in zip(J, F)]
-    for k in range(n):
-        p = max(range(k, n), key=lambda i: abs(A[i][k]))
-        if A[p][k] == 0.0:
-            return None
-        A[k], A[p] = A[p], A[k]
-        for i in range(k + 1, n):
-            f = A[i][k] / A[k][k]
-            if f:
-                A[i] = [a - f * b for a, b in zip(A[i], A[k])]
-    dz = [0.0] * n
-    for i in range(n - 1, -1, -1):
-        dz[i] = (A[i][n] - sum(A[i][j] * dz[j] for j in range(i + 1, n))) / A[i][i]
-    return dz if all(math.isfinite(d) for d in dz) else None
+def _maxabs(v) -> float:
+    return float(np.max(np.abs(v)))
 
 
-class _Vectors:
-    """The vector operations of :func:`_damped_newton` for one kind of unknowns: ``scalar`` (a float),
-    ``small`` (a list of floats, see :data:`SMALL_NEWTON_MAX`) or an array."""
-
-    def __init__(self, kind: str):
-        self.scalar, self.small = kind == "scalar", kind == "small"
-
-    def norm(self, v):
-        return abs(v) if self.scalar else math.hypot(*v) if self.small else np.linalg.norm(v)
-
-    def maxabs(self, v):
-        return abs(v) if self.scalar else max(map(abs, v)) if self.small else np.max(np.abs(v))
-
-    def step(self, F, J):
-        return _small_step(F, J) if self.small else _newton_step(F, J, self.scalar)
-
-    def axpy(self, z, c, d):
-        """``z + c*d``"""
-        return [a + c * b for a, b in zip(z, d)] if self.small else z + c * d
-
-    def nudge(self, z):
-        """``z`` moved off a point where the loop's Jacobian is singular."""
-        return [a + NEWTON_NUDGE * (1.0 + abs(a)) for a in z] if self.small else z + NEWTON_NUDGE * (1.0 + abs(z))
+def _nudge(z):
+    """``z`` moved off a point where the loop's Jacobian is singular."""
+    return z + NEWTON_NUDGE * (1.0 + np.abs(z))
 
 
-_KINDS = {kind: _Vectors(kind) for kind in ("scalar", "small", "array")}
-
-
-def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False, small: bool = False):
-    """Damped Newton from ``z``: ``(solution, iterations)``, or ``(None, iterations)`` if it fails.
-
-    ``scalar``: one unknown, ``fun`` returns floats; ``small``: a few unknowns, ``fun`` returns lists
-    (no arrays: a few µs less per iteration)."""
-    V = _KINDS["scalar" if scalar else "small" if small else "array"]
+def _damped_newton(fun, z, tol: float, max_iter: int):
+    """Damped Newton from the array ``z``: ``(solution, iterations)``, or ``(None, iterations)`` if it
+    fails (``fun(z)`` returns the residual array and its Jacobian).  Loops of up to three unknowns do
+    not come here: their generated scalar functions (:func:`scalar_newton_lines`) take the same steps."""
     start = _residual(fun, z)
     if start is None:
         return None, 0
     F, J = start
-    norm = V.norm(F)
+    norm = np.linalg.norm(F)
     nudges = 0
     for it in range(1, max_iter + 1):
         if norm == 0.0:               # a zero residual is a solution, even where J is singular
             return z, it - 1
-        dz = V.step(F, J)
+        dz = _newton_step(F, J)
         if dz is None:                # singular J off the root (d·f·|f| at f = 0): step off the point
-            trial = _residual(fun, V.nudge(z)) if nudges < 3 else None
+            trial = _residual(fun, _nudge(z)) if nudges < 3 else None
             if trial is None:
                 return None, it
             nudges += 1
-            z = V.nudge(z)
+            z = _nudge(z)
             F, J = trial
-            norm = V.norm(F)
+            norm = np.linalg.norm(F)
             continue
-        if V.maxabs(dz) <= tol * (1.0 + V.maxabs(z)):
-            return V.axpy(z, -1.0, dz), it     # converged to rounding: a line search would only halve the step 20 times
+        if _maxabs(dz) <= tol * (1.0 + _maxabs(z)):
+            return z - dz, it     # converged to rounding: a line search would only halve the step 20 times
         lam = 1.0
         while True:
-            z_new = V.axpy(z, -lam, dz)
+            z_new = z - lam * dz
             trial = _residual(fun, z_new)
             if trial is None and lam >= 1e-6:
                 lam *= 0.5
@@ -143,11 +94,11 @@ def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False, smal
             if trial is None:
                 return None, it
             F_new, J_new = trial
-            if V.norm(F_new) <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
+            if np.linalg.norm(F_new) <= (1 - 1e-4 * lam) * norm or lam < 1e-6:
                 break
             lam *= 0.5
-        z, F, J, norm = z_new, F_new, J_new, V.norm(F_new)
-        if lam * V.maxabs(dz) <= tol * (1.0 + V.maxabs(z)) or norm == 0.0:
+        z, F, J, norm = z_new, F_new, J_new, np.linalg.norm(F_new)
+        if lam * _maxabs(dz) <= tol * (1.0 + _maxabs(z)) or norm == 0.0:
             return z, it
     return None, max_iter
 
@@ -155,31 +106,25 @@ def _damped_newton(fun, z, tol: float, max_iter: int, scalar: bool = False, smal
 #: Newton iterations allowed from the warm start, and then from zero
 NEWTON_MAX_ITER = (60, 200)
 
-#: loops up to this many unknowns are iterated on lists of floats, larger ones on arrays
-SMALL_NEWTON_MAX = 3
-
-
-def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12, scalar: bool = False, small: bool = False):
+def newton(fun, store: list, k: int, stats: dict, tol: float = 1e-12):
     """Solve ``fun(z) = (F, J)`` for ``F = 0`` (damped Newton) for algebraic loop ``k``.
 
     Starts from the last solution ``store[k]``; a trial state of the integrator far from the last
     one (a rejected step) can put that start on the flat side of a steep law (sinh, cubic), so a
-    failed warm start is retried once from zero before giving up.  ``scalar``: one unknown (floats);
-    ``small``: up to :data:`SMALL_NEWTON_MAX` unknowns as lists; else arrays.
+    failed warm start is retried once from zero before giving up.
     """
     total = 0
     n = len(store[k])
-    starts = (store[k][0], 0.0) if scalar else (list(store[k]), [0.0] * n) if small else \
-        (np.array(store[k], dtype=float), np.zeros(n))
+    starts = (np.array(store[k], dtype=float), np.zeros(n))
     for z0, max_iter in zip(starts, NEWTON_MAX_ITER):
-        z, it = _damped_newton(fun, z0, tol, max_iter, scalar, small)
+        z, it = _damped_newton(fun, z0, tol, max_iter)
         total += it
         if z is not None:
             stats["newton_iterations"] += total
             stats["newton_solves"] += 1
-            store[k] = [z] if scalar else z
+            store[k] = z
             return z
-    last = _residual(fun, store[k][0] if scalar else list(store[k]) if small else np.asarray(store[k], dtype=float))
+    last = _residual(fun, np.asarray(store[k], dtype=float))
     norm = f"{np.linalg.norm(last[0]):.3g}" if last is not None else "not computable"
     raise NewtonError(f"Newton's method did not converge in algebraic loop {k} "
                       f"(|F| = {norm} at the last solution, {total} iterations)")

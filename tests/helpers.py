@@ -1,6 +1,7 @@
 """Shared helpers for the tests: build scenes from inline YAML and run them."""
 from __future__ import annotations
 
+import math
 import textwrap
 
 import pytest
@@ -34,3 +35,15 @@ def codes(text: str) -> list[str]:
 def run(text: str, **kw):
     sc = scene(text)
     return pipeline.run(sc, progress=False, **kw)
+
+
+def circle_intersection(theta, l=0.2, l1=0.6, l2=0.5, bx=0.7):
+    """Coupler and rocker angles [rad] of a four-bar (crank l at angle theta from the origin, coupler l1,
+    rocker l2 pivoted at (bx, 0) [m]) in closed form, the upper assembly (K = +1)."""
+    ax, ay = l * math.cos(theta), l * math.sin(theta)
+    dx, dy = bx - ax, -ay
+    d = math.hypot(dx, dy)
+    along = (l1 * l1 - l2 * l2 + d * d) / (2 * d)
+    across = math.sqrt(l1 * l1 - along * along)
+    px, py = ax + along * dx / d - across * dy / d, ay + along * dy / d + across * dx / d
+    return math.atan2(py - ay, px - ax), math.atan2(py, px - bx)

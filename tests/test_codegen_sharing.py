@@ -79,9 +79,9 @@ def test_shared_code_gives_the_closure_and_the_plain_values():
 
 def test_dead_assignments_are_dropped_and_what_they_read_with_them():
     body = ["    a = 0.8", "    b = -a", "    c = 2.0*x0", "    _g[0] = [c]",
-            "    z, = newton(_blk0, _g, 0, _stats, small=True)", "    return np.array([c])"]
+            "    z, = newton(_blk0, _g, 0, _stats)", "    return np.array([c])"]
     assert codegen._live(body) == ["    c = 2.0*x0", "    _g[0] = [c]",
-                                   "    z, = newton(_blk0, _g, 0, _stats, small=True)", "    return np.array([c])"]
+                                   "    z, = newton(_blk0, _g, 0, _stats)", "    return np.array([c])"]
 
 
 def test_a_constant_source_given_as_a_symbolic_number_is_folded():

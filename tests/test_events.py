@@ -345,5 +345,7 @@ def test_damped_newton_returns_a_start_with_zero_residual_untouched():
     """At a root where the Jacobian vanishes (2d·z·|z| at z = 0) the start is the solution: no
     step is taken (a nudge off the singular point would move it)."""
     from multipole.codegen import _damped_newton
-    z, iterations = _damped_newton(lambda z: (2.0 * z * abs(z), 4.0 * abs(z)), 0.0, 1e-12, 10, scalar=True)
+    def fun(z):
+        return 2.0 * z * np.abs(z), np.array([[4.0 * abs(z[0])]])
+    z, iterations = _damped_newton(fun, np.zeros(1), 1e-12, 10)
     assert z == 0.0 and iterations == 0

@@ -17,6 +17,8 @@ import multipole as mp
 from multipole import pipeline
 from multipole.errors import NewtonError
 
+from helpers import circle_intersection
+
 needs_numba = pytest.mark.skipif(importlib.util.find_spec("numba") is None, reason="numba not installed")
 BACKENDS = ["numpy", pytest.param("numba", marks=needs_numba)]
 
@@ -52,17 +54,6 @@ connections:
 outputs: [crank.phi, rod.phi, rod.x]
 simulate: {{t_end: 2.0, dt_out: 0.01}}
 """, "slider.yaml")
-
-
-def circle_intersection(theta, l1=L1):
-    """Coupler and rocker angles of the four-bar (the assembly K = +1) in closed form."""
-    ax, ay = L * math.cos(theta), L * math.sin(theta)
-    dx, dy = BX - ax, -ay
-    d = math.hypot(dx, dy)
-    along = (l1 * l1 - L2 * L2 + d * d) / (2 * d)
-    across = math.sqrt(l1 * l1 - along * along)
-    px, py = ax + along * dx / d - across * dy / d, ay + along * dy / d + across * dx / d
-    return math.atan2(py - ay, px - ax), math.atan2(py, px - BX)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

@@ -1,7 +1,8 @@
 """The generated code's small solvers (a linkage's loops, docs/performance.md "Linkages"): the
 unrolled scalar elimination of numeric linear loops (codegen Writer.elimination_lines), the Gaussian
-elimination kernel of the numba backend (numba_kernels.gauss_solve) and Newton's method on lists of
-floats (codegen.newton(small=True)).  Expected values: numpy's dense solve of the same matrix, and
+elimination kernel of the numba backend (numba_kernels.gauss_solve) and Newton's method
+(codegen.newton, the generic iteration of loops larger than the generated scalar ones).  Expected
+values: numpy's dense solve of the same matrix, and
 the circle intersection of a four-bar's closure in closed form."""
 import math
 
@@ -10,7 +11,7 @@ import pytest
 import sympy as sp
 
 from multipole import codegen, pipeline
-from tests.helpers import scene
+from tests.helpers import circle_intersection, scene
 
 ONE_MASS = """
 name: one
@@ -103,45 +104,34 @@ def test_gauss_kernel_equals_the_dense_solve_and_flags_a_singular_matrix():
 
 
 def _fourbar_closure(theta, l=0.2, l1=0.6, l2=0.5, bx=0.7):
-    """Residuals and Jacobian of a four-bar's closure in the coupler and rocker angles (lists)."""
+    """Residuals and Jacobian of a four-bar's closure in the coupler and rocker angles (arrays)."""
     def fun(z):
         p1, p2 = z
-        return ([l * math.cos(theta) + l1 * math.cos(p1) - l2 * math.cos(p2) - bx,
-                 l * math.sin(theta) + l1 * math.sin(p1) - l2 * math.sin(p2)],
-                [[-l1 * math.sin(p1), l2 * math.sin(p2)], [l1 * math.cos(p1), -l2 * math.cos(p2)]])
+        return (np.array([l * math.cos(theta) + l1 * math.cos(p1) - l2 * math.cos(p2) - bx,
+                          l * math.sin(theta) + l1 * math.sin(p1) - l2 * math.sin(p2)]),
+                np.array([[-l1 * math.sin(p1), l2 * math.sin(p2)], [l1 * math.cos(p1), -l2 * math.cos(p2)]]))
     return fun
 
 
-def _circle_intersection(theta, l=0.2, l1=0.6, l2=0.5, bx=0.7):
-    """Coupler and rocker angles of the four-bar in closed form (the upper assembly)."""
-    ax, ay = l * math.cos(theta), l * math.sin(theta)
-    dx, dy = bx - ax, -ay
-    d = math.hypot(dx, dy)
-    along = (l1 * l1 - l2 * l2 + d * d) / (2 * d)
-    across = math.sqrt(l1 * l1 - along * along)
-    px, py = ax + along * dx / d - across * dy / d, ay + along * dy / d + across * dx / d
-    return math.atan2(py - ay, px - ax), math.atan2(py, px - bx)
-
-
 @pytest.mark.parametrize("theta", [0.3, 1.9, -2.5])
-def test_newton_on_lists_finds_the_circle_intersection(theta):
-    """From a start 0.1 rad off (a rejected step's trial state), Newton on lists of floats lands on
-    the closed-form pose to 1e-12, returns a list, and counts its iterations."""
-    exact = _circle_intersection(theta)
+def test_newton_finds_the_circle_intersection(theta):
+    """From a start 0.1 rad off (a rejected step's trial state), Newton lands on the closed-form pose
+    to 1e-12, keeps it as the next start, and counts its iterations."""
+    exact = circle_intersection(theta)
     stats = {"newton_iterations": 0, "newton_solves": 0}
     store = [[exact[0] + 0.1, exact[1] - 0.1]]
-    z = codegen.newton(_fourbar_closure(theta), store, 0, stats, small=True)
-    assert isinstance(z, list)
+    z = codegen.newton(_fourbar_closure(theta), store, 0, stats)
     assert abs(z[0] - exact[0]) < 1e-12 and abs(z[1] - exact[1]) < 1e-12
-    assert store[0] == z and stats["newton_solves"] == 1 and 2 <= stats["newton_iterations"] <= 10
+    assert store[0] is z and stats["newton_solves"] == 1 and 2 <= stats["newton_iterations"] <= 10
 
 
-def test_newton_on_lists_of_three_unknowns():
-    """Three unknowns (the elimination path of the list step): x = 1, y = 2, z = 3 from
+def test_newton_on_three_unknowns():
+    """Three unknowns: x = 1, y = 2, z = 3 from
     x² + y = 3, y·z = 6, x + y + z² = 12."""
     def fun(v):
         x, y, z = v
-        return ([x * x + y - 3, y * z - 6, x + y + z * z - 12], [[2 * x, 1, 0], [0, z, y], [1, 1, 2 * z]])
+        return (np.array([x * x + y - 3, y * z - 6, x + y + z * z - 12]),
+                np.array([[2 * x, 1, 0], [0, z, y], [1, 1, 2 * z]]))
     stats = {"newton_iterations": 0, "newton_solves": 0}
-    z = codegen.newton(fun, [[1.2, 1.7, 3.3]], 0, stats, small=True)
+    z = codegen.newton(fun, [[1.2, 1.7, 3.3]], 0, stats)
     assert np.allclose(z, [1.0, 2.0, 3.0], rtol=0, atol=1e-12)

@@ -28,7 +28,7 @@ from __future__ import annotations
 import networkx as nx
 import sympy as sp
 
-from multipole import (MTF, Closure, Diagnostic, I, Network, Param, Quantity, Se, Sketch, element, junction_b,
+from multipole import (MTF, ClosedForm, Closure, Diagnostic, I, Network, Param, Quantity, Se, Sketch, element, junction_b,
                        position_graph, register_check)
 
 _cos, _sin = sp.cos, sp.sin
@@ -211,6 +211,13 @@ def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
     h6 = (h1 * h4 - h2 * h5) / (2 * h3)
     h7 = (h2 * h4 + h1 * h5) / (2 * h3)
     phi1_0, phi2_0 = sp.atan2(h7, h6), sp.atan2(h7 - h2, h6 - h1)
+
+    def branch(k):
+        """The closure's solution in assembly mode ``k``: the directions of links 1 and 2 (the start
+        formula, P - P1 = (h6, h7), at every evaluation)."""
+        root = k * sp.sqrt(4 * h3 * L1 ** 2 - h4 ** 2)
+        x, y = (h1 * h4 - h2 * root) / (2 * h3), (h2 * h4 + h1 * root) / (2 * h3)
+        return [(x / L1, y / L1), ((x - h1) / L2, (y - h2) / L2)]
     link1 = link([(L1, 0)], 0 if _zero(m1) else _S("m1"), 0 if _zero(J1) else _S("J1"), _S("xs1"), _S("ys1"),
                  phi1_0, ("out",))
     link2 = link([(L2, 0)], 0 if _zero(m2) else _S("m2"), 0 if _zero(J2) else _S("J2"), _S("xs2"), _S("ys2"),
@@ -235,7 +242,10 @@ def DDD(l1, l2, K, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, x2, y2):
                       conditions=[(L1 + L2 - sp.sqrt(h3), "the links do not reach: |P1P2| exceeds l1 + l2", "m"),
                                   (sp.sqrt(h3) - sp.Abs(L1 - L2), "the links do not reach: |P1P2| is shorter than "
                                    "|l1 - l2|", "m")],
-                      guard=(sp.sin(p2 - p1), DEAD_CENTRE, "sin(phi2 - phi1)"))
+                      guard=(sp.sin(p2 - p1), DEAD_CENTRE, "sin(phi2 - phi1)"),
+                      closed_form=ClosedForm([branch(K_) for K_ in (1, -1)],
+                                             # the side of P1P2 the integrated link 1 points to: <= 0 for K = +1
+                                             -(h2 * _cos(p1) - h1 * _sin(p1))))
     q = {"phi1": Quantity(lambda V: V.x("L1.K.q3")), "phi2": Quantity(lambda V: V.x("L2.K.q3")),
          "omega1": Quantity(lambda V: V.f("L1.w.out")), "omega2": Quantity(lambda V: V.f("L2.w.out")),
          "x": Quantity(lambda V: V.param("xa1") + V.param("l1") * sp.cos(V.x("L1.K.q3"))),

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from multipole import Closure, Network, Param, Quantity, Se, Sf, Sketch, element, junction_b
+from multipole import ClosedForm, Closure, Network, Param, Quantity, Se, Sf, Sketch, element, junction_b
 
 from .linkage import DEAD_CENTRE, _PLANAR_DOC, _anchor, _body, _gravity, _S, _zero, check_mode, link
 
@@ -145,6 +145,14 @@ def dds_start(K, l, v, xa1, ya1, xa2, ya2, phiU):
     return xG, sp.atan2(ya1 - yP, xa1 - xP)
 
 
+def dds_branch(K, l, v, xa1, ya1, xa2, ya2, phiU):
+    """The DDS closure's solution in assembly mode ``K`` (:func:`dds_start` at every evaluation): the
+    link's direction from P towards P1 as (cos phi_L, sin phi_L), and the travel x_G [m]."""
+    xG, _angle = dds_start(K, l, v, xa1, ya1, xa2, ya2, phiU)
+    xP, yP = xa2 + xG * _cos(phiU) - v * _sin(phiU), ya2 + xG * _sin(phiU) + v * _cos(phiU)
+    return [((xa1 - xP) / l, (ya1 - yP) / l), xG]
+
+
 @element("DDS", "VDI 2729 dyad with a prismatic joint as connection: a link hinged at the anchor P1 (pin) and "
          "at P to a slider on a guide welded to the anchor P2 (angle phi_U); P is at the offset v from the "
          "slide line, the foot point PS at the travel x_G from P2",
@@ -193,7 +201,10 @@ def DDS(l, v, K, xsL, ysL, mL, JL, xsS, ysS, mS, JS, gx, gy, x1, y1, x2, y2, phi
                       "the pin P reached from P1 along the link and from P2 along the guide",
                       conditions=[(reach, "the link does not reach the line of the pin: its distance from P1 "
                                    "exceeds l", "m")],
-                      guard=(_cos(phiL - phiU), DEAD_CENTRE, "cos(phi_L - phi_U)"))
+                      guard=(_cos(phiL - phiU), DEAD_CENTRE, "cos(phi_L - phi_U)"),
+                      closed_form=ClosedForm([dds_branch(K_, L_, V_, xa1, ya1, xa2, ya2, phiU) for K_ in (1, -1)],
+                                             # the integrated travel beyond the foot of the perpendicular from P1
+                                             xG + _cos(phiU) * (xa2 - xa1) + _sin(phiU) * (ya2 - ya1)))
     q = {"phi": _local(phiL), "omega": Quantity(lambda V: V.f("L.w.out")), "x": _local(xG),
          "v": Quantity(lambda V: V.f("S.s")), "force": Quantity(lambda V: V.e("S.s")),
          "xP": _local(xP), "yP": _local(yP), "transmission": _local(_cos(phiL - phiU))}

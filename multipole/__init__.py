@@ -13,7 +13,7 @@ from .diagnostics import CATALOGUE as DIAGNOSTICS, Diagnostic, register as regis
 from .domains import BUNDLES, DOMAINS, Bundle, Domain
 from .equations import Equations, assemble
 from .errors import IllPosedError, ModelError, MultipoleError, NetlistError, RunError
-from .network import Closure, FlatNetwork, Monitor, Network, Quantity, Sketch, flatten
+from .network import ClosedForm, Closure, FlatNetwork, Monitor, Network, Quantity, Sketch, flatten
 from .primitives import T, LAW_F, LAW_P, LAW_Q
 from .primitives import C, CField, GY, I, MTF, R, TF, Primitive, Se, Sf, Tap, junction_a, junction_b
 
@@ -31,7 +31,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "REQUIRED", "ElementType", "Param", "Reduction", "reduce", "catalogue", "element", "register", "Analysis", "analyse", "DIAGNOSTICS",
-    "Diagnostic", "register_check", "CheckContext", "position_graph", "BUNDLES", "Bundle", "DOMAINS", "Domain", "Closure", "Monitor", "Sketch", "Equations", "assemble", "IllPosedError", "ModelError",
+    "Diagnostic", "register_check", "CheckContext", "position_graph", "BUNDLES", "Bundle", "DOMAINS", "Domain", "ClosedForm", "Closure", "Monitor", "Sketch", "Equations", "assemble", "IllPosedError", "ModelError",
     "MultipoleError", "NetlistError", "RunError", "FlatNetwork", "Network", "Quantity", "flatten", "C", "CField",
     "GY", "I", "MTF", "R", "TF", "Primitive", "Se", "Sf", "Tap", "junction_a", "junction_b", "T", "LAW_F", "LAW_P",
     "LAW_Q", "Model", "compile_model", "Result", "read_csv", "simulate", "linearize", "control_name", "Scene", "load", "loads", "pipeline", "sweep",

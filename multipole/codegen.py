@@ -139,6 +139,15 @@ def newton_failed(k: int, residuals, total: int) -> NewtonError:
                        f"(|F| = {shown} at the last solution, {total} iterations)")
 
 
+def closure_failed(k: int, radicand: float) -> NewtonError:
+    """The error of a position closure solved by formula (:meth:`Writer.closed_form_lines`) where a
+    square root of its formula has the negative radicand ``radicand``: no real solution."""
+    return NewtonError(f"the position closure of loop {k} has no real solution (a radicand of its formula is "
+                       f"{radicand:.3g}, below zero: the links do not reach)",
+                       "the mechanism is driven beyond a position it can take: check the drive's motion and "
+                       "the link lengths", code="closure_unreachable")
+
+
 #: loops up to this many unknowns get a Newton function of their own in scalar variables, printed once
 #: per loop by :func:`scalar_newton_lines` (both backends; the dyads of a mechanism have two unknowns)
 SCALAR_NEWTON_MAX = 3
@@ -590,8 +599,7 @@ def _units(eq: Equations) -> list:
         if b.solution is not None:
             units += [_Unit("assign", [v], [s], k) for v, s in zip(b.variables, b.solution)]
         else:
-            extra = list(b.matrix) + list(b.rhs) if b.matrix is not None else []
-            units.append(_Unit(b.kind, list(b.variables), list(b.residuals) + extra + list(b.start or ()), k))
+            units.append(_Unit(b.kind, list(b.variables), b.reads(), k))
     return units
 
 
@@ -778,11 +786,83 @@ class _Writer:
             return self.matrix_lines("_A", b.matrix) + [f"    _b = np.array([{', '.join(P(x) for x in b.rhs)}])",
                                                         f"{lhs} np.linalg.solve(_A, _b).tolist()"]
         k = u.block
+        if b.closed_form is not None:
+            return self.closed_form_lines(b, zs, k)
         if n <= SCALAR_NEWTON_MAX:
             return self.scalar_newton(b, zs, k)
         Jz = _jacobian(b.residuals, zs)
         seed = [f"    _guess[{k}] = [{', '.join(N[v] for v in b.start)}]"] if b.start else []
         return seed + self._newton_lines(b, zs, Jz, k, lhs)
+
+    #: what the generated code does where a closed form's square root has a negative radicand
+    #: (``{k}``: the loop, ``{r}``: the radicand's name; numba: nothing, the root is NaN and the
+    #: integrator rejects the step)
+    NO_ROOT = "raise closure_failed({k}, {r})"
+
+    def closed_form_lines(self, b, zs, k) -> list:
+        """Position closure ``k`` (unknowns ``zs``) by its formula (:class:`multipole.network.ClosedForm`):
+        the branches' common subexpressions once, every square root's radicand named and tested
+        (:attr:`NO_ROOT`), each unknown picked from the branch the sign of ``select`` names; an angle
+        is ``atan2`` continued to the turn of its integrated value, and its cosine and sine are the
+        branch's pair, named as :meth:`shared_trig` names them, so nothing calls a trigonometric
+        function of it."""
+        N, P = self.names, self.P
+        cf = b.closed_form
+        entries = [[v if isinstance(v, tuple) else (v,) for v in branch] for branch in cf.branches]
+        exprs = [self.fold(e) for branch in entries for v in branch for e in v]
+        if cf.select is not None:
+            exprs.append(self.fold(cf.select))
+        prefix = f"_k{k}_"
+        roots: dict = {}
+
+        def root(arg):
+            if arg not in roots:
+                roots[arg] = sp.Symbol(f"{prefix}q{len(roots)}")
+            return roots[arg]
+        exprs = [e.replace(lambda x: x.is_Pow and x.exp == sp.S.Half, lambda x: root(x.base)) for e in exprs]
+        radicands = list(roots)
+        temps, reduced = sp.cse(radicands + exprs, symbols=sp.numbered_symbols(f"{prefix}c"), optimizations=None)
+        items = list(temps)
+        for i, (arg, sym) in enumerate(roots.items()):
+            rad = sp.Symbol(f"{prefix}r{i}")
+            items += [(rad, reduced[i]), (sym, sp.sqrt(rad))]
+        reduced = reduced[len(radicands):]
+        for sym, _e in items:
+            N[sym] = str(sym)
+        lines, done = [], set()
+        pending = items
+        while pending:                   # in dependency order (a radicand before its root before its uses)
+            later = []
+            for sym, e in pending:
+                if (e.free_symbols & {s for s, _e in items}) - done:
+                    later.append((sym, e))
+                    continue
+                if sym in roots.values() and self.NO_ROOT is not None:
+                    rad = N[e.args[0]] if e.is_Pow else N[e]
+                    lines += [f"    if not {rad} >= 0.0:", "        " + self.NO_ROOT.format(k=k, r=rad)]
+                lines.append(f"    {N[sym]} = {P(e)}")
+                done.add(sym)
+            if len(later) == len(pending):
+                raise ModelError("codegen", f"the closed form of loop {k} cannot be ordered")
+            pending = later
+        width = sum(len(v) for v in entries[0])
+        picks = [P(e) for e in reduced[:width]]
+        if len(entries) == 2:
+            sel = f"{prefix}s"
+            lines.append(f"    {sel} = {P(reduced[-1])}")
+            picks = [f"({a} if {sel} >= 0.0 else {c})" for a, c in zip(picks, (P(e) for e in reduced[width:2 * width]))]
+        at = 0
+        for z, start, v in zip(zs, b.start, entries[0]):
+            if len(v) == 1:
+                lines.append(f"    {N[z]} = {picks[at]}")
+            else:
+                angle = f"{prefix}a{at}"
+                lines += [f"    _cos_{N[z]} = {picks[at]}", f"    _sin_{N[z]} = {picks[at + 1]}",
+                          f"    {angle} = math.atan2(_sin_{N[z]}, _cos_{N[z]})",
+                          f"    {N[z]} = {angle} + {2 * math.pi!r} * math.floor(({N[start]} - {angle}) / "
+                          f"{2 * math.pi!r} + 0.5)"]
+            at += len(v)
+        return lines
 
     def scalar_newton(self, b, zs, k) -> list:
         """The call of loop ``k``'s Newton function (up to :data:`SCALAR_NEWTON_MAX` unknowns ``zs``),
@@ -1001,6 +1081,7 @@ class _Writer:
         named = set(self.names.values())
         done: set = set()
         out = []
+        given = re.compile(r"    _(sin|cos)_(\w+) = ")     # a closed form's direction (closed_form_lines)
 
         def share(m):
             fn, v = m.group(1), m.group(2)
@@ -1015,6 +1096,9 @@ class _Writer:
             top = line.startswith("    ") and not line.startswith("     ")
             nested = line.startswith("    def ") or (nested and not top)
             out.append(line if nested or not top else _TRIG_CALL.sub(share, line))   # temporaries first
+            m = given.match(line)
+            if m:
+                done.add((m.group(1), m.group(2)))
         return out
 
     def jacobian_plan(self) -> "JacobianPlan":
@@ -1318,7 +1402,7 @@ def generate(eq: Equations, outputs=(), runtime=()) -> str:
 
     def ders():
         return ", ".join(N[d] if d in N else P(d) for d in eq.derivatives)
-    src = ["import math", "import numpy as np", "", "from multipole.codegen import newton, newton_failed", "",
+    src = ["import math", "import numpy as np", "", "from multipole.codegen import closure_failed, newton, newton_failed", "",
            "_stats = {'rhs_calls': 0, 'jac_calls': 0, 'newton_iterations': 0, 'newton_solves': 0}",
            f"_guess = {[[0.0] * len(b.variables) for b in eq.blocks]!r}", ""]
     if w.runtime:

@@ -27,7 +27,7 @@ from sympy.solvers.solveset import NonlinearError
 from .causality import Analysis, der
 from .diagnostics import Diagnostic
 from .errors import IllPosedError, ModelError
-from .network import closure_order, var
+from .network import map_closed_form, closure_order, var
 from .primitives import T
 from .stages import _subset, bulk, derivative, numeric_function
 
@@ -51,6 +51,20 @@ class Block:
     matrix: sp.Matrix | None = None   # numeric linear blocks: A z = b
     rhs: sp.Matrix | None = None
     start: list | None = None         # newton blocks: symbols whose values are the first start
+    #: a position closure solved by formula (:class:`multipole.network.ClosedForm` in the closed
+    #: values of earlier closures; ``select`` in this closure's integrated states ``start``)
+    closed_form: object = None
+
+    def reads(self) -> list:
+        """Every expression the block reads: equations, solution, loop matrix, start, closed form."""
+        exprs = list(self.residuals) + list(self.solution or ()) + list(self.start or ())
+        if self.matrix is not None:
+            exprs += list(self.matrix) + list(self.rhs)
+        if self.closed_form is not None:
+            cf = self.closed_form
+            exprs += [e for branch in cf.branches for v in branch for e in (v if isinstance(v, tuple) else (v,))]
+            exprs += [] if cf.select is None else [cf.select]
+        return exprs
 
 
 @dataclass
@@ -575,8 +589,12 @@ def _closure_blocks(analysis: Analysis) -> tuple[list, dict]:
     for k in order:
         states, residuals, owner = closures[k]
         res = [sp.sympify(r).xreplace(closed) for r in residuals]
+        cf = analysis.flat.closed_forms.get(k)
+        if cf is not None:      # earlier closures' states by their closed values; the select by its own integrated ones
+            earlier = {s: c for s, c in closed.items() if s not in states}
+            cf = map_closed_form(cf, lambda e: sp.sympify(e).xreplace(earlier))
         blocks.append(Block("newton", [closed[s] for s in states], None, res, [owner] * len(res),
-                            ["position closure"] * len(res), start=list(states)))
+                            ["position closure"] * len(res), start=list(states), closed_form=cf))
     return blocks, closed
 
 

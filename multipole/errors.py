@@ -54,14 +54,16 @@ class RunError(MultipoleError):
 
 
 class NewtonError(RunError, ArithmeticError):
-    """Newton's method did not converge in an algebraic loop (at one evaluation of the model).
+    """An algebraic loop has no solution at one evaluation of the model: Newton's method did not
+    converge (``newton_failed``), or a position closure's formula has no real value there
+    (``closure_unreachable``).
 
     A run-time error (exit code 3); also an ``ArithmeticError``, so code that treats a failed
     evaluation of the model as arithmetic (the solver choice, the step loop) handles it alike."""
 
     def __init__(self, message: str, fix: str = "check the loop's laws and parameters for a state where "
-                 "they have no solution", where: str = ""):
-        super().__init__("newton_failed", message, fix, where)
+                 "they have no solution", where: str = "", code: str = "newton_failed"):
+        super().__init__(code, message, fix, where)
 
 
 class Interrupted(KeyboardInterrupt):

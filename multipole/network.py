@@ -40,6 +40,25 @@ class Quantity:
 
 
 @dataclass
+class ClosedForm:
+    """A :class:`Closure`'s residuals solved by formula: the generated code evaluates it instead of
+    iterating (Newton's method solves a closure without one).
+
+    ``branches``: one or two candidate solutions, each a list with one entry per closure state, in
+    the closure's local names (parameters, signals, position reads; not the closure's own states):
+    the state's value, or for an angle ``(cos, sin)``, its direction as a unit vector.  An angle's
+    value is ``atan2(sin, cos)`` continued to the turn of its integrated value (never wrapped), and
+    the code reads the pair wherever the angle's cosine or sine is wanted (no trigonometric call).
+    ``select`` (two branches): an expression in the same names and the closure's *integrated* states
+    whose sign tells the branch the mechanism is on, the first where ``select >= 0``.  Where a square
+    root in a branch has a negative radicand the closure has no real solution: the evaluation fails as
+    a Newton solve that found none does (the integrator rejects the step)."""
+
+    branches: list
+    select: object = None
+
+
+@dataclass
 class Closure:
     """A holonomic closure: residuals ``g = 0`` that pin the values of some displacement states.
 
@@ -64,6 +83,8 @@ class Closure:
     #: (:func:`guard_monitors`): a run in which ``|expr|`` falls below ``threshold`` reports
     #: ``near_dead_centre``, one in which it falls below :data:`DEAD_STOP` times it stops with ``dead_centre``
     guard: tuple | None = None
+    #: the residuals solved by formula (:class:`ClosedForm`), or None: Newton's method
+    closed_form: ClosedForm | None = None
 
 
 #: a closure's dead-centre guard stops the run once ``|expr|`` falls below this fraction of its
@@ -326,6 +347,8 @@ class FlatNetwork:
     external_ports: dict = field(default_factory=dict)  # "elem.port" -> primitive port path
     prefer_state: list = field(default_factory=list)
     closures: list = field(default_factory=list)        # (state symbols, residual expressions, owner)
+    #: closure index -> its :class:`ClosedForm` in global names (the closures that have one)
+    closed_forms: dict = field(default_factory=dict)
     sketches: list = field(default_factory=list)        # (owner, Sketch, [(x, y) global expressions])
     conditions: list = field(default_factory=list)      # (expr >= 0 at t = 0, text, unit, owner)
     monitors: list = field(default_factory=list)        # (expr, Monitor, owner)
@@ -477,6 +500,9 @@ class _Flattener:
         for c in net.closures:
             states = [var(self.state_path(net, path, ref)) for ref in c.states]
             residuals = [self.resolve(r, scope, f"{where} closure") for r in c.residuals]
+            if c.closed_form is not None:
+                self.flat.closed_forms[len(self.flat.closures)] = map_closed_form(
+                    c.closed_form, lambda e: self.resolve(e, scope, f"{where} closure"), len(states), where)
             self.flat.closures.append((states, residuals, where))
             for cond in c.conditions:
                 expr, text, unit = (tuple(cond) + ("",))[:3]
@@ -614,6 +640,8 @@ class _Flattener:
             if eq.expr.free_symbols & resolved.keys():
                 eq.expr = eq.expr.xreplace(resolved)
         fl.closures = [(st, [sp.sympify(r).xreplace(resolved) for r in res], owner) for st, res, owner in fl.closures]
+        fl.closed_forms = {k: map_closed_form(cf, lambda e: sp.sympify(e).xreplace(resolved))
+                           for k, cf in fl.closed_forms.items()}
         fl.conditions = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.conditions]
         fl.monitors = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.monitors]
         fl.quantities = {k: (sp.sympify(e).xreplace(resolved), u, d) for k, (e, u, d) in fl.quantities.items()}
@@ -640,6 +668,18 @@ class _Flattener:
             deps = s.initial.free_symbols & by_symbol.keys()
             if deps:
                 s.initial = s.initial.xreplace({d: by_symbol[d].initial for d in deps})
+
+
+def map_closed_form(cf: ClosedForm, f, n: int | None = None, where: str = "") -> ClosedForm:
+    """``cf`` with ``f`` applied to every expression (an angle's pair entry by entry); with ``n``,
+    checked against a closure of ``n`` states (``where``: the element, for the error)."""
+    if n is not None and (not 1 <= len(cf.branches) <= 2 or any(len(b) != n for b in cf.branches)
+                          or (len(cf.branches) == 2) != (cf.select is not None)):
+        raise ModelError("bad_closed_form", f"{where}: a closed form needs one or two branches of {n} entries "
+                         "each, and a select expression exactly when it has two",
+                         "give one entry per closure state in every branch")
+    branches = [[tuple(f(e) for e in v) if isinstance(v, (tuple, list)) else f(v) for v in b] for b in cf.branches]
+    return ClosedForm(branches, None if cf.select is None else f(cf.select))
 
 
 def closure_order(closures) -> list | None:

@@ -75,10 +75,8 @@ class Pruning:
 
 
 def _block_reads(b) -> set:
-    """Every symbol block ``b`` reads (its equations, solution, loop matrix and start values)."""
-    exprs = list(b.residuals) + list(b.solution or ()) + list(b.start or ())
-    if b.matrix is not None:
-        exprs += list(b.matrix) + list(b.rhs)
+    """Every symbol block ``b`` reads (:meth:`multipole.equations.Block.reads`)."""
+    exprs = b.reads()
     return set().union(*(sp.sympify(e).free_symbols for e in exprs)) if exprs else set()
 
 

@@ -720,7 +720,7 @@ def model_failure(model, exc: BaseException) -> SimulationError | None:
     where = where or function or "the model"
     when = f" at t = {float(t):.6g} s" if isinstance(t, (int, float)) else ""
     if isinstance(exc, NewtonError):
-        return _failed(model, "newton_failed", f"no solution{when} in {where} ({exc.message})", exc.fix, element)
+        return _failed(model, exc.code, f"no solution{when} in {where} ({exc.message})", exc.fix, element)
     reason = next((r for cls, r in _REASONS.items() if isinstance(exc, cls)), None)
     if reason is None:
         text = str(exc)
@@ -1130,14 +1130,14 @@ def _rejecting_unsolvable_loops(model):
     A failure at an accepted state still ends the run, with the Newton message."""
     failures: list = []
     base = model.rhs_in_mode if model.n_switches else model.rhs
-    if not re.search(r"\b_?newton\w*\(", getattr(model, "source", "")):     # no Newton loop
+    if not re.search(r"\b(_?newton\w*|closure_failed)\(", getattr(model, "source", "")):     # no loop that can fail
         return base, failures
 
     def rhs(t, x):
         try:
             return base(t, x)
         except NewtonError as exc:
-            failures.append(model_failure(model, exc) or _failed(model, "newton_failed", exc.message))
+            failures.append(model_failure(model, exc) or _failed(model, exc.code, exc.message))
             return np.full(len(x), np.nan)
     return rhs, failures
 

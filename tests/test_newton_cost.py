@@ -1,12 +1,18 @@
-"""Work of the generated position closures (issue 12, per-call cost): Newton iterations per
-right-hand-side call bounded in runs, the crank's sine and cosine computed once per call (not per
-iteration), and the generated scalar Newton functions against closed forms and on failure.
+"""Work of the generated position closures (issue 12, per-call cost).
+
+The dyads DDD and DDS declare their closure's formula (a ClosedForm): the generated code evaluates it
+and does no Newton iteration.  A closure without one (the curve rolls' tangency, any element's) is
+solved by the generated scalar Newton function; those tests run on the same two mechanisms with the
+formulas taken out of the equations (:func:`newton_only`): Newton iterations per right-hand-side call
+bounded in runs, the crank's sine and cosine computed once per call (not per iteration), the Newton
+functions against the closed forms written here and on failure.
 
 Expected values: the four-bar's circle intersection and the slider-crank's pin height written here.
 The iteration bounds come from Newton's quadratic convergence from the integrated start (a step,
 then the step at the new point is below the 1e-12 tolerance: 2 iterations); runs add the trial
 states of rejected steps and the explicit stages, which start further off.
 """
+import dataclasses
 import importlib.util
 import math
 
@@ -14,7 +20,8 @@ import numpy as np
 import pytest
 
 import multipole as mp
-from multipole import pipeline
+from multipole import codegen, pipeline
+from multipole.backends import get_backend
 from multipole.errors import NewtonError
 
 from helpers import circle_intersection
@@ -56,6 +63,17 @@ simulate: {{t_end: 2.0, dt_out: 0.01}}
 """, "slider.yaml")
 
 
+def newton_only(eq):
+    """``eq`` with every closure's formula taken out: the generated code solves the closures by Newton."""
+    return dataclasses.replace(eq, blocks=[dataclasses.replace(b, closed_form=None) for b in eq.blocks])
+
+
+def newton_model(sc):
+    """The numpy backend's model of scene ``sc`` (its outputs) with the closures solved by Newton."""
+    eq, outs, _ = pipeline.pruned(sc)
+    return codegen.compile_model(newton_only(eq), outs)
+
+
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("make", [fourbar, slider_crank], ids=["four-bar", "slider-crank"])
 def test_newton_iterations_per_call_in_a_run_are_bounded(make, backend):
@@ -64,7 +82,8 @@ def test_newton_iterations_per_call_in_a_run_are_bounded(make, backend):
     the slider-crank started from the previous call's solution takes 3.0 at rtol 1e-9."""
     sc = make()
     for rtol, bound in ((1e-9, 2.75), (1e-5, 3.5)):
-        s = pipeline.run(sc, rtol=rtol, atol=rtol * 1e-2, backend=backend, progress=False).stats
+        eq, outs, _ = pipeline.pruned(sc)
+        s = get_backend(backend)(newton_only(eq), outs, 2.0, 0.01, rtol=rtol, atol=rtol * 1e-2, progress=False).stats
         assert s["newton_solves"] >= s["nfev"]
         assert s["newton_iterations"] <= bound * s["newton_solves"], (rtol, s)
 
@@ -72,7 +91,7 @@ def test_newton_iterations_per_call_in_a_run_are_bounded(make, backend):
 @pytest.mark.parametrize("make", [fourbar, slider_crank], ids=["four-bar", "slider-crank"])
 def test_a_call_near_the_closure_takes_two_iterations(make):
     """Integrated angles 1e-9 rad off the closure: one Newton step and the confirming one."""
-    model = pipeline.model(make())
+    model = newton_model(make())
     x = np.array(model.x0, dtype=float)
     model.reset_stats()
     for k in range(100):
@@ -86,7 +105,7 @@ def test_a_call_near_the_closure_takes_two_iterations(make):
 def test_terms_free_of_the_unknowns_are_computed_once_per_call(make, crank):
     """The crank's sine and cosine (the closure's terms that do not depend on the dependent angles)
     are computed once in the right-hand side, not in the residual function each iteration calls."""
-    src = pipeline.model(make()).source
+    src = newton_model(make()).source
     rhs = src[src.index("def rhs("):src.index("\ndef ", src.index("def rhs("))]
     blk = src[src.index("def _blk0("):src.index("\ndef ", src.index("def _blk0("))]
     for fn in ("sin", "cos"):
@@ -99,7 +118,7 @@ def test_terms_free_of_the_unknowns_are_computed_once_per_call(make, crank):
 def test_generated_newton_from_a_far_start_lands_on_the_circle_intersection(theta):
     """Integrated angles 0.1 rad off (a rejected step's trial state): the solved angles equal the
     closed form to 1e-12 (the Newton tolerance), after more than 2 iterations."""
-    model = pipeline.model(fourbar())
+    model = newton_model(fourbar())
     exact = circle_intersection(theta)
     model.reset_stats()
     values = dict(zip(model.value_names, model.values(0.0, np.array([theta, 0.0, exact[0] + 0.1, exact[1] - 0.1]))))
@@ -112,7 +131,6 @@ def test_a_runtime_parameter_in_the_closure_is_read_at_run_time():
     """The coupler length as a runtime parameter (a parameter study compiles once): the generated
     residual reads it from _P, and after set_parameters the solved angles are the circle
     intersection of the new length."""
-    from multipole import codegen
     eq = pipeline.equations(fourbar())
     l1 = next(p for p in eq.params if str(p) == "rocker.l1")
     model = codegen.compile_model(eq, ["crank.phi"], runtime=[l1])
@@ -128,7 +146,7 @@ def test_a_runtime_parameter_in_the_closure_is_read_at_run_time():
 def test_slider_crank_closure_against_the_pin_height():
     """The rod angle from sin(phi) = (R sin(theta) - E) / LR with P beyond the crank pin, the travel
     x = R cos(theta) - LR cos(phi): both from a start 0.05 off, to 1e-12."""
-    model = pipeline.model(slider_crank())
+    model = newton_model(slider_crank())
     for theta in (0.3, 2.0, -1.2):
         sin_phi = (R * math.sin(theta) - E) / LR
         phi = math.pi - math.asin(sin_phi)
@@ -140,7 +158,7 @@ def test_slider_crank_closure_against_the_pin_height():
 def test_a_closure_that_cannot_assemble_is_a_newton_error():
     """A four-bar whose coupler and rocker (0.4 m each) cannot reach across 0.9 m at theta = pi:
     both starts of the generated Newton fail and the call raises newton_failed."""
-    model = pipeline.model(fourbar(l1=0.4, l2=0.4))
+    model = newton_model(fourbar(l1=0.4, l2=0.4))
     x = np.array(model.x0, dtype=float)
     x[0] = math.pi
     with pytest.raises(NewtonError) as exc:

@@ -199,6 +199,7 @@ class _Writer(codegen.Writer):
     """Prints the model as numba ``cfunc`` functions ``void fun(t, *x, *out, *w)``."""
 
     SINGULAR = None      # a cfunc cannot raise: the division by a zero pivot makes the values NaN
+    NO_ROOT = None       # nor where a closed form has no real root: the square root is NaN
 
     def __init__(self, eq):
         super().__init__(eq)
@@ -242,6 +243,8 @@ class _Writer(codegen.Writer):
             lines += [f"    _b[{i}] = {P(b.rhs[i])}" for i in range(n)]
             lines += ["    _k.gauss_solve(_A, _b)"]
             return lines + [f"    {N[z]} = _b[{i}]" for i, z in enumerate(zs)]
+        if b.closed_form is not None:
+            return self.closed_form_lines(b, zs, u.block)
         return self.newton_lines(u, b)
 
     def newton_lines(self, u, b) -> list:
@@ -298,7 +301,7 @@ class _Writer(codegen.Writer):
         """The cfunc ``name(t, x, out, w)`` writing ``values`` (code) into ``out`` of ``shape``, as
         ``(name, doc, shape, body, preamble)`` for :func:`cfunc_lines`."""
         units = codegen.closure(self.units, needed)
-        body = self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)]
+        body = self.shared_trig(self.prologue(units, needed) + [f"    out[{i}] = {v}" for i, v in enumerate(values)])
         return name, doc, shape, body, []
 
     def jacobian_function(self) -> tuple:
@@ -321,6 +324,7 @@ class _Writer(codegen.Writer):
             body.append("    _Dz = _k.neg_solve(_Jz, _G)")
             body += [f"    {d} = _Dz[{zi}, {c}]" for zi, c, d in step.names]
         body += [f"    out[{i}, {j}] = {d}" for i, j, d in plan.entries]
+        body = self.shared_trig(body)
         zero = [f"    for _i in range({n}):", f"        for _j in range({n}):", "            out[_i, _j] = 0.0"]
         return "jac", "Jacobian d(rhs)/dx into out.", f"({n}, {n})", body, zero
 

@@ -21,7 +21,7 @@ import math
 
 import sympy as sp
 
-from multipole import MTF, Closure, I, ModelError, Network, Param, Quantity, Se, Sf, element, junction_b
+from multipole import MTF, ClosedForm, Closure, I, ModelError, Network, Param, Quantity, Se, Sf, element, junction_b
 
 from .linkage import _PLANAR_DOC, DEAD_CENTRE, _S, _anchor, _gravity, _zero
 
@@ -166,7 +166,10 @@ def DSD(v, xsU, ysU, mU, JU, xsS, ysS, mS, JS, gx, gy, x1, y1, x2, y2):
                       "P2 reached from P1 along the slide line (travel x_G) and the offset v",
                       conditions=[(sp.sqrt(h3) - sp.Abs(V_), "the slider cannot reach: |P1P2| is not longer than "
                                    "|v|", "m")],
-                      guard=(xg / sp.sqrt(xg ** 2 + V_ ** 2), DEAD_CENTRE, "x_G/|P1P2|"))
+                      guard=(xg / sp.sqrt(xg ** 2 + V_ ** 2), DEAD_CENTRE, "x_G/|P1P2|"),
+                      # the start formula with the travel's sign from the integrated travel (through its dead centre)
+                      closed_form=ClosedForm([[((h1 * g + V_ * h2) / h3, (h2 * g - V_ * h1) / h3), g]
+                                              for g in (h4, -h4)], xg))
     params = {"v": v, "xsU": xsU, "ysU": ysU, "mU": mU, "JU": JU, "xsS": xsS, "ysS": ysS, "mS": mS, "JS": JS,
               "gx": gx, "gy": gy, "x1": x1, "y1": y1, "x2": x2, "y2": y2}
     q = {"phiU": Quantity(lambda V: V.x("C.K.q3")), "omega": Quantity(lambda V: V.f("C.w.out1")),
@@ -231,7 +234,8 @@ def SSD(v1, v2, phiv, phi1, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, 
     pos_p = sp.Matrix([xa1, ya1]) + g1 * _e(phi_) + V1 * _n(phi_)
     closure = Closure(["C.K.q4", "C.K.q5"],
                       list(pos_p + g2 * _e(phi_ + PV) + V2 * _n(phi_ + PV) - sp.Matrix([xa2, ya2])),
-                      "P2 reached along slide line 1 (travel xG1, offset v1) and slide line 2 (xG2, v2)")
+                      "P2 reached along slide line 1 (travel xG1, offset v1) and slide line 2 (xG2, v2)",
+                      closed_form=ClosedForm([[xg1_0, xg2_0]]))
     params = {"v1": v1, "v2": v2, "phiv": phiv, "phi1": phi1, "xs1": xs1, "ys1": ys1, "m1": m1, "J1": J1,
               "xs2": xs2, "ys2": ys2, "m2": m2, "J2": J2, "gx": gx, "gy": gy, "x1": x1, "y1": y1, "x2": x2, "y2": y2}
     q = {"phiU1": Quantity(lambda V: V.param("pa1") + V.param("phi1")), "omega": Quantity(lambda V: V.f("C.w.out1")),
@@ -299,7 +303,9 @@ def SDS(v1, v2, phi1, phi2, xs1, ys1, m1, J1, xs2, ys2, m2, J2, gx, gy, x1, y1, 
                       "P reached along slide line 1 (travel xG1, offset v1) and slide line 2 (xG2, v2)",
                       conditions=[(sp.Abs(cross) - _PARALLEL, "the slide lines are parallel: |sin(phiU2 - phiU1)| "
                                    f"is not above {_PARALLEL}", "-")],
-                      guard=(cross, DEAD_CENTRE, "sin(phiU2 - phiU1)"))
+                      guard=(cross, DEAD_CENTRE, "sin(phiU2 - phiU1)"),
+                      closed_form=ClosedForm([[(b[0] * e2[1] - b[1] * e2[0]) / cross,
+                                               (b[0] * e1[1] - b[1] * e1[0]) / cross]]))
     params = {"v1": v1, "v2": v2, "phi1": phi1, "phi2": phi2, "xs1": xs1, "ys1": ys1, "m1": m1, "J1": J1,
               "xs2": xs2, "ys2": ys2, "m2": m2, "J2": J2, "gx": gx, "gy": gy, "x1": x1, "y1": y1, "x2": x2, "y2": y2}
 

@@ -821,7 +821,15 @@ class _Writer:
             return roots[arg]
         exprs = [e.replace(lambda x: x.is_Pow and x.exp == sp.S.Half, lambda x: root(x.base)) for e in exprs]
         radicands = list(roots)
-        temps, reduced = sp.cse(radicands + exprs, symbols=sp.numbered_symbols(f"{prefix}c"), optimizations=None)
+        # a sine or cosine of a named value stays a call (shared_trig names it), not a temporary of its own
+        calls = set().union(*(e.atoms(sp.sin, sp.cos) for e in radicands + exprs))
+        trig = {f: sp.Symbol(f"{prefix}{f.func.__name__}{i}") for i, f in enumerate(sorted(calls, key=sp.default_sort_key))
+                if f.args[0].is_Symbol}
+        back = {s: f for f, s in trig.items()}
+        temps, reduced = sp.cse([e.xreplace(trig) for e in radicands + exprs], symbols=sp.numbered_symbols(f"{prefix}c"),
+                                optimizations=None)
+        temps = [(s, e.xreplace(back)) for s, e in temps]
+        reduced = [e.xreplace(back) for e in reduced]
         items = list(temps)
         for i, (arg, sym) in enumerate(roots.items()):
             rad = sp.Symbol(f"{prefix}r{i}")

@@ -8,7 +8,8 @@ blocks:
 * ``linear`` — a linear loop, solved symbolically when small (the constrained-state form of
   derivative causality lands here and gives the effective inertia), otherwise kept as ``A·z = b``
   and solved numerically in the generated code;
-* ``newton`` — a nonlinear loop, solved by Newton's method in the generated code.
+* ``newton`` — a nonlinear loop, solved by Newton's method in the generated code (a position
+  closure whose element gives a formula, :class:`multipole.network.ClosedForm`, by that formula).
 
 :class:`Equations` holds the states, inputs, parameters, blocks and outputs, and prints them as
 text, LaTeX or Python (the generated code), and as Weber-style back-calculation chains.
@@ -188,10 +189,14 @@ class Equations:
                 lines.append(f"  {show(b.variables[0])} = {show(b.solution[0])}    [{who(b.owners[0])}: {note(b.notes[0])}]")
             else:
                 how = "solved symbolically" if b.solution is not None else \
-                    "solved numerically (LU)" if b.kind == "linear" else "solved by Newton"
-                lines.append(f"  {b.kind} loop for ({', '.join(map(show, b.variables))}), {how}:")
+                    "solved numerically (LU)" if b.kind == "linear" else \
+                    "solved by its element's formula" if b.closed_form is not None else "solved by Newton"
+                what = "position closure" if b.start is not None else f"{b.kind} loop"
+                lines.append(f"  {what} for ({', '.join(map(show, b.variables))}), {how}:")
                 for r, o in zip(b.residuals, b.owners):
                     lines.append(f"      0 = {show(r)}    [{who(o)}]")
+                if b.closed_form is not None and b.closed_form.select is not None:
+                    lines.append(f"    => the branch where {show(b.closed_form.select)} >= 0, else the other")
                 if b.solution is not None:
                     lines += [f"    => {show(v)} = {show(s)}" for v, s in zip(b.variables, b.solution)]
         if steps:

@@ -328,6 +328,10 @@ def _refuse_unsupported(w: CWriter, eq: Equations, needed) -> None:
     values = {q: sp.Float(v) for q, v in eq.params.items()}
     for u in codegen.closure(w.units, needed):
         b = eq.blocks[u.block]
+        if u.kind == "newton" and b.start is not None:
+            raise FmuError("fmu_newton_loop", f"the position closure of {elements(b.owners)} (a linkage or band "
+                           "loop, solved at every evaluation) is not evaluated by the exported C code",
+                           "simulate with multipole, or export a model without position closures")
         if u.kind == "newton":
             raise FmuError("fmu_newton_loop", f"the nonlinear algebraic loop through {elements(b.owners)} needs "
                            "Newton's method, which the exported C code does not do",

@@ -98,6 +98,9 @@ CLOSURES = {
 }
 
 
+DYADS = {"DDD", "DDS", "DSD", "SSD", "SDS"}
+
+
 @pytest.mark.parametrize("name", SCENES)
 def test_closure_blocks_name_their_unknowns_and_read_the_driving_angle(name):
     an, d = drawn(name)
@@ -107,8 +110,10 @@ def test_closure_blocks_name_their_unknowns_and_read_the_driving_angle(name):
     assert set(blocks) == set(expected)
     for owner, (unknowns, reads, modulated) in expected.items():
         b = blocks[owner]
-        assert b.label == f"position closure ({owner})" and b.note.startswith("Newton on ")
-        assert {owner + "." + u for u in b.note[len("Newton on "):].split(", ")} == unknowns
+        # the dyads give their closure's formula; the band closures (a curve's tangency) are Newton's
+        how = "formula for " if an.flat.elements[owner] in DYADS else "Newton on "
+        assert b.label == f"position closure ({owner})" and b.note.startswith(how)
+        assert {owner + "." + u for u in b.note[len(how):].split(", ")} == unknowns
         assert any(colour == POSITION and owner in text and all(u in text for u in unknowns | reads)
                    for colour, text in d.messages)
         # a signal from the block that integrates each read state (its transformer) into the closure
@@ -238,7 +243,7 @@ def test_closure_texts_do_not_overlap_other_texts():
     fig.draw(renderer)
     texts = [(t.get_text(), t.get_window_extent(renderer)) for t in fig.findobj(Text)
              if t.get_visible() and t.get_text().strip()]
-    mine = [(t, bb) for t, bb in texts if t.startswith("position closure (") or t.startswith("Newton on")]
+    mine = [(t, bb) for t, bb in texts if t.startswith(("position closure (", "Newton on", "formula for"))]
     assert len(mine) == 2
     for t, bb in mine:
         for u, other in texts:

@@ -152,6 +152,17 @@ def test_newton_loop_is_refused_naming_the_element(tmp_path):
     assert not path.exists()
 
 
+def test_position_closure_is_refused_naming_the_element(tmp_path):
+    """A four-bar: its dyad's closure is evaluated at every call (by its formula), which the C code
+    does not do: refused naming the dyad, no file written."""
+    path = tmp_path / "fourbar.fmu"
+    with pytest.raises(fmu.FmuError) as exc:
+        fmu.export(load(DIAGRAMS / "linkages" / "fourbar_crank_rocker.yaml"), path)
+    assert exc.value.code == "fmu_newton_loop"
+    assert "position closure of rocker" in exc.value.message
+    assert not path.exists()
+
+
 def test_table_is_refused_naming_the_element(tmp_path):
     with pytest.raises(fmu.FmuError) as exc:
         fmu.export(load(DIAGRAMS / "weber" / "spur_elastic_table.yaml"), tmp_path / "table.fmu")

@@ -12,7 +12,7 @@ The diagram shows the flattened primitives of a scene the way Weber draws multip
   the causality analyser (:func:`multipole.pipeline.check`);
 * storage in **derivative causality** drawn dashed in purple (``d/dt`` instead of ``∫``);
 * **position closures** (planar linkages, bands) as green blocks above the lanes ("position
-  closure: Newton on" the states they solve for), with green dash-dotted **position signals** from
+  closure: formula for" or "Newton on" the states they solve for), with green dash-dotted **position signals** from
   the states they read and to the transformers whose ratios their states modulate;
 * the elements named in **error diagnostics** drawn in red, with the diagnostic's words below.
 
@@ -64,7 +64,8 @@ def _messages(an: Analysis, closures=(), signals=()) -> list:
         if d.code == "derivative_causality":
             lines.append((DERIVATIVE, f"derivative causality: {d.message}"))
     for c in closures:
-        text = f"position closure of {c.owner}: Newton's method solves its residuals for {', '.join(c.unknowns)}"
+        how = "its formula gives" if c.formula else "Newton's method solves its residuals for"
+        text = f"position closure of {c.owner}: {how} {', '.join(c.unknowns)}"
         if c.reads:
             text += f", reading {', '.join(c.reads)}"
         feeds = sorted({s.target.rsplit(':', 1)[0] for s in signals if s.source == c.block})

@@ -43,7 +43,7 @@ class Block:
 
     ``kind``: ``sum`` (Σ), ``dot`` (branching point), ``ratio`` (TF/MTF), ``gyrator``, ``storage``
     (I, C, C-field), ``resistance`` (R), ``source`` (Se, Sf), ``tap``, ``terminal`` (an unconnected
-    port), ``closure`` (a position closure solved by Newton's method), ``other`` (a one-port kind defined by an element library), ``repeat`` (the placeholder
+    port), ``closure`` (a position closure, solved by its formula or Newton's method), ``other`` (a one-port kind defined by an element library), ``repeat`` (the placeholder
     of identical sub-elements drawn collapsed).
     ``row``: ``"f"`` (flow row), ``"e"`` (effort row), ``"x"`` (between the rows) or ``"p"``
     (a ``closure``: a position closure, above the lanes).

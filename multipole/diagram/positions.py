@@ -2,7 +2,7 @@
 
 Elements that hand positions through their connections (planar linkages, bands) hold *displacement
 states* (a link angle, a travel) that modulate their transformers, and *position closures*
-(:class:`multipole.network.Closure`): residuals the equations stage solves by Newton's method for
+(:class:`multipole.network.Closure`): residuals the equations stage solves, by the element's formula or by Newton's method, for
 some of those states at every evaluation.  This stage draws
 
 * one **closure block** per closure above the lanes ("position closure", with the states it solves
@@ -52,12 +52,14 @@ class Signal:
 @dataclass
 class Closure:
     """A drawn position closure: its block id, the element that owns it, the states it solves
-    for (``unknowns``, full names), the states its residuals read from elsewhere (``reads``)."""
+    for (``unknowns``, full names), the states its residuals read from elsewhere (``reads``), and
+    whether a formula solves it (``formula``, :class:`multipole.network.ClosedForm`) or Newton's method."""
 
     block: str
     owner: str
     unknowns: list
     reads: list
+    formula: bool = False
 
 
 def _short(name: str, owner: str) -> str:
@@ -90,7 +92,7 @@ def positions(topo: Topology, ordering: Ordering, placed: Placement, top: float)
                         if v in owner_of and v not in states}, key=lambda v: v.name)
         for v in reads:
             wanted[(block_of_state(v), bid)].append(v.name)
-        records.append(Closure(bid, owner, [s.name for s in states], [v.name for v in reads]))
+        records.append(Closure(bid, owner, [s.name for s in states], [v.name for v in reads], k in flat.closed_forms))
     for path, prim in topo.prims.items():
         if prim.kind in ("I", "C", "CField", "Tap") or path in topo.hidden:
             continue                             # storages read their own states only
@@ -110,7 +112,7 @@ def positions(topo: Topology, ordering: Ordering, placed: Placement, top: float)
     for rec in records:
         text = ", ".join(_short(u, rec.owner) for u in rec.unknowns)
         label = f"position closure ({rec.owner})"
-        note = f"Newton on {text}"
+        note = f"formula for {text}" if rec.formula else f"Newton on {text}"
         w = max(_text_width(label, 9), _text_width(note, 7.5)) + 0.3
         el = rec.owner.split(".")[0] if rec.owner != "<root>" else ""
         blocks[rec.block] = Block(rec.block, "closure", label, "p", rec.owner, el, note, w=w, h=0.58,

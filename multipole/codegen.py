@@ -932,15 +932,32 @@ class _Writer:
     SINGULAR = "raise np.linalg.LinAlgError('singular matrix')"
 
     def elimination_lines(self, A, b, names: list) -> list:
-        """``names = A⁻¹ b`` as straight-line scalar code: Gaussian elimination with partial pivoting,
+        """``names = A⁻¹ b`` as straight-line scalar code, no arrays and no solver call: the entries of
+        ``A`` and ``b`` (:meth:`loop_entry_lines`), then Cramer's rule (:meth:`cramer_lines`, up to
+        :data:`CRAMER_UNROLL_MAX` unknowns) or Gaussian elimination with partial pivoting
+        (:meth:`pivot_lines`), whichever takes fewer operations for the unknowns the right-hand side
+        reads (:func:`_operations`): the slider-crank's and the four-bar's acceleration loops read one
+        of 3 and 5 unknowns, which Cramer's rule gets in a third of the elimination's operations."""
+        n = len(names)
+        nz = {i: {j for j in range(n) if A[i, j] != 0} for i in range(n)}     # row id -> its nonzero columns
+        self._cse_count = tag = getattr(self, "_cse_count", 0) + 1     # this loop's temporaries: _e{tag}_...
+        lines = self.loop_entry_lines([(f"_a{i}_{j}", A[i, j]) for i in range(n) for j in sorted(nz[i])]
+                                      + [(f"_r{i}", b[i]) for i in range(n)], tag)
+        pivots = self.pivot_lines({i: set(c) for i, c in nz.items()}, names)
+        if n > CRAMER_UNROLL_MAX:
+            return lines + pivots
+        cramer = self.cramer_lines(nz, names, tag)
+        wanted = [v for v in names if v in self._rhs_reads()] or names
+        return lines + (cramer if _operations(cramer, wanted) < _operations(pivots, wanted) else pivots)
+
+    def pivot_lines(self, nz, names: list) -> list:
+        """``names = A⁻¹ b`` over the entries ``_ai_j`` (nonzero columns ``nz[i]`` of row ``i``, updated
+        here with the fill-in) and ``_ri`` printed before: Gaussian elimination with partial pivoting,
         unrolled over the sparsity pattern of ``A`` (a structural zero is never multiplied; a column
         with one candidate pivot is swapped while printing, one with several chooses the largest at
-        run time).  No arrays and no solver call: a four-bar's 5 × 5 acceleration loop costs a
-        fraction of ``np.linalg.solve`` (and of the compiled LU)."""
-        P, n = self.P, len(names)
-        nz = {i: {j for j in range(n) if A[i, j] != 0} for i in range(n)}     # row id -> its nonzero columns
-        lines = [f"    _a{i}_{j} = {P(A[i, j])}" for i in range(n) for j in sorted(nz[i])]
-        lines += [f"    _r{i} = {P(b[i])}" for i in range(n)]
+        run time)."""
+        n = len(names)
+        lines: list = []
         rows = list(range(n))            # position -> row id
         for k in range(n):
             cand = [i for i in range(k, n) if k in nz[rows[i]]]
@@ -981,6 +998,86 @@ class _Writer:
             terms = "".join(f" - _a{rk}_{j} * {names[j]}" for j in sorted(c for c in nz[rk] if c > k))
             lines.append(f"    {names[k]} = (_r{rk}{terms}) / _a{rk}_{k}")
         return lines
+
+    def cramer_lines(self, nz, names: list, tag) -> list:
+        """``names = A⁻¹ b`` by Cramer's rule over the entries ``_ai_j`` (nonzero columns ``nz[i]`` of
+        row ``i``) and ``_ri`` printed before: each unknown ``Σ_k r_k C_ki / det A`` with the cofactors
+        ``C_ki`` of ``A``, minors named ``_m{tag}_N`` once each (a structural zero is never multiplied), and
+        ``det A`` expanded along the column of an unknown the right-hand side reads, whose cofactors it
+        computes anyway (:meth:`Python functions <function>` drop the lines nothing reads: the
+        slider-crank's 3 × 3 acceleration loop costs 3 cofactors, the determinant and one quotient
+        where the elimination had 28 lines with its pivot search)."""
+        n = len(names)
+        lines: list = []
+        minors: dict = {}
+
+        def entry(r, c):
+            return f"_a{r}_{c}" if c in nz[r] else None
+
+        def minor(rows, cols):           # the determinant of A[rows, cols] as code, None if structurally 0
+            if not rows:
+                return "1.0"             # (of a 1 × 1 loop's cofactor)
+            if len(rows) == 1:
+                return entry(rows[0], cols[0])
+            key = (rows, cols)
+            if key not in minors:
+                terms = []
+                for at, c in enumerate(cols):     # along the first row
+                    sub = None if c not in nz[rows[0]] else minor(rows[1:], cols[:at] + cols[at + 1:])
+                    if sub is not None:
+                        terms.append(("-" if at % 2 else "+", f"_a{rows[0]}_{c} * {sub}"))
+                minors[key] = None
+                if terms:
+                    name = f"_m{tag}_{len(lines)}"
+                    lines.append(f"    {name} = " + _signed_sum(terms))
+                    minors[key] = name
+            return minors[key]
+
+        def cofactor(k, i):
+            m = minor(tuple(r for r in range(n) if r != k), tuple(c for c in range(n) if c != i))
+            return None if m is None else ("-" if (k + i) % 2 else "+", m)
+        wanted = self._rhs_reads()
+        along = next((j for j in range(n) if names[j] in wanted), 0)
+        terms = [(s, f"_a{k}_{along} * {m}") for k in range(n) if along in nz[k]
+                 for s, m in [cofactor(k, along) or ("", None)] if m is not None]
+        if not terms:
+            raise ModelError("singular_loop", "a linear loop's matrix is structurally singular",
+                             "report this: the causality analysis should have refused the network")
+        det = f"_det{tag}"
+        lines.append(f"    {det} = " + _signed_sum(terms))
+        if self.SINGULAR:
+            lines += [f"    if {det} == 0.0:", f"        {self.SINGULAR}"]
+        for i in range(n):
+            num = [(s, f"_r{k} * {m}") for k in range(n) for s, m in [cofactor(k, i) or ("", None)] if m is not None]
+            lines.append(f"    {names[i]} = ({_signed_sum(num) if num else '0.0'}) / {det}")
+        return lines
+
+    def _rhs_reads(self) -> set:
+        """Names of the values the right-hand side reads (states' derivatives and every unit they need)."""
+        if getattr(self, "_rhs_names", None) is None:
+            units = _closure(self.units, self.eq.derivatives)
+            read = set().union(*(u.deps - set(u.variables) for u in units),     # (a loop's residuals read its own)
+                               *(sp.sympify(d).free_symbols for d in self.eq.derivatives))
+            self._rhs_names = {self.names[v] for v in read if v in self.names}
+        return self._rhs_names
+
+    def loop_entry_lines(self, entries, tag) -> list:
+        """``name = expr`` for the entries ``[(name, expr)]`` of one linear loop (its matrix and
+        right-hand side), with their common subexpressions computed once, as temporaries ``_eN_k``
+        (the rows of a mechanism's acceleration loop repeat the same velocity products and the mass
+        matrix is symmetric; ``tag`` names the loop), and ``a·sin²u + b·cos²u`` folded to ``b + (a - b)·sin²u``
+        (:func:`_pythagoras`).  Sines and cosines of a named value stay calls for :meth:`shared_trig`."""
+        P = self.P
+        exprs = [_pythagoras(self.fold(e)) for _name, e in entries]
+        calls = set().union(*(e.atoms(sp.sin, sp.cos) for e in exprs))
+        trig = {f: sp.Symbol(f"{f}#") for f in calls if f.args[0].is_Symbol}   # not temporaries of their own
+        back = {d: f for f, d in trig.items()}
+        temps, reduced = sp.cse([e.xreplace(trig) for e in exprs], symbols=sp.numbered_symbols(f"_e{tag}_"))
+        lines = []
+        for sym, sub in temps:
+            self.names[sym] = str(sym)
+            lines.append(f"    {sym} = {P(sub.xreplace(back))}")
+        return lines + [f"    {name} = {P(e.xreplace(back))}" for (name, _e), e in zip(entries, reduced)]
 
     def matrix_lines(self, name: str, M, indent: str = "    ") -> list:
         """``name = M`` as code: a literal array up to :data:`DENSE_MAX_UNKNOWNS` rows, else zeros and
@@ -1209,6 +1306,50 @@ class _Writer:
         return {j: " + ".join(acc[j]) for j in sorted(acc)}
 
 
+def _operations(lines: list, wanted: list) -> int:
+    """Arithmetic operations, comparisons and branches in the ``lines`` of a loop's solution that
+    computing the names ``wanted`` needs (the lines a Python function keeps, :func:`_live`)."""
+    live = _live(list(lines) + [f"    return {', '.join(wanted)}"])
+    return sum(len(_OPERATION.findall(line)) for line in live)
+
+
+_OPERATION = re.compile(r"[-+*/]|\babs\(|\bif\b")
+
+
+def _signed_sum(terms) -> str:
+    """``[(sign, code)]`` as one sum, e.g. ``a*b - c*d`` (a leading minus kept)."""
+    first, rest = terms[0], terms[1:]
+    return ("-" if first[0] == "-" else "") + first[1] + "".join(f" {s} {c}" for s, c in rest)
+
+
+def _pythagoras(expr):
+    """``expr`` with each pair of terms ``a·sin(u)²·R + b·cos(u)²·R`` of a sum (the same ``u`` and
+    factor ``R``, numbers ``a`` and ``b``) replaced by ``b·R + (a - b)·sin(u)²·R`` — just ``a·R`` when
+    ``a == b``: a body's inertia about a pivot, ``m·l²·(sin² + cos²) + J``, becomes a number.  Equal to
+    ``expr`` to rounding; sums inside products and powers are folded too."""
+    if not expr.has(sp.sin) or not expr.has(sp.cos):
+        return expr
+    if not expr.is_Add:
+        return expr.func(*[_pythagoras(a) for a in expr.args]) if expr.args else expr
+    terms = [_pythagoras(a) for a in expr.args]
+    squares: dict = {}               # (u, R) -> {sin or cos: (index, coefficient)}
+    for i, t in enumerate(terms):
+        coeff, rest = t.as_coeff_Mul()
+        factors = sp.Mul.make_args(rest)
+        for f in factors:
+            if f.is_Pow and f.exp == 2 and isinstance(f.base, (sp.sin, sp.cos)):
+                others = sp.Mul(*[g for g in factors if g is not f])
+                squares.setdefault((f.base.args[0], others), {})[f.base.func] = (i, coeff)
+                break
+    for (u, rest), pair in squares.items():
+        if len(pair) < 2:
+            continue
+        (i, a), (j, c) = pair[sp.sin], pair[sp.cos]
+        terms[j] = c * rest
+        terms[i] = (a - c) * sp.sin(u) ** 2 * rest if a != c else sp.S.Zero
+    return sp.Add(*terms)
+
+
 def _const(e, values: dict) -> float | None:
     """Value of a float, a parameter or one over a parameter (nonzero, finite), else None."""
     if e.is_Float:
@@ -1382,6 +1523,10 @@ DENSE_MAX_UNKNOWNS = 8
 #: Numeric linear loops up to this many unknowns are solved by unrolled scalar elimination
 #: (:meth:`Writer.elimination_lines`), larger ones by a solver call on an array.
 UNROLL_MAX_UNKNOWNS = 8
+
+#: Numeric linear loops up to this many unknowns are solved by Cramer's rule over their printed
+#: entries (:meth:`Writer.cramer_lines`), larger ones by elimination with partial pivoting.
+CRAMER_UNROLL_MAX = 5
 
 #: Expressions with more operations than this are printed after common-subexpression elimination.
 CSE_MIN_OPS = 40

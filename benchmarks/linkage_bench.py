@@ -6,9 +6,10 @@ tests/test_linkage_dynamics.py and a torque-driven slider-crank.
    (minimal coordinate: the crank angle; four-bar: coupler and rocker from the circle intersection;
    slider-crank: the rod's sine from the pin height, the travel by one square root; the reduced
    inertia and its velocity terms by virtual power), in Python floats (no numpy scalar or array).
-   Each call at a new state (the crank angle moved by 1e-9 rad, at most 1e-6 from the start: the
-   generated closure then starts 1e-9 to 1e-6 off, and its Newton solve takes 2 iterations, as in
-   a run at rtol 1e-9), CPU time, the two timed interleaved, medians of 7 rounds.
+   Each call at a new state (the crank angle moved by 1e-9 rad, at most 1e-6 from the start: a
+   closure solved by Newton's method then starts 1e-9 to 1e-6 off and takes 2 iterations, as in a
+   run at rtol 1e-9; one solved by formula does not iterate), CPU time, the two timed interleaved, medians of 7 rounds; in Python each
+   result converted by ``np.asarray`` as scipy's ``solve_ivp`` converts it (``--per-call-only``).
 2. Whole runs at equal error: `multipole` with the numba backend against the hand-written model
    under scipy's solve_ivp (DOP853), each over a ladder of tolerances; error = max |crank angle -
    reference| over the output grid (reference: the hand model at rtol 1e-13).
@@ -153,13 +154,17 @@ PER_CALL = (("four-bar", SCENE, hand_rhs, hand_accel), ("slider-crank", SCENE_SC
 
 
 def _cpu_per_call(fun, x, n):
-    """CPU time per call of ``fun(0, x)`` [s] over ``n`` calls, each at a new state (``x[0]`` moved
-    by 1e-9: the integrated start of the position closure is then off the closure, as in a run)."""
+    """CPU time per call of ``np.asarray(fun(0, x))`` [s] over ``n`` calls, each at a new state
+    (``x[0]`` moved by 1e-9: the integrated start of the position closure is then off the closure, as
+    in a run).  The result is converted as scipy's ``solve_ivp`` converts every right-hand side's
+    (``np.asarray(fun(t, y))``): the hand model returns a list, whose conversion the solver pays; the
+    generated model returns an array already."""
     x = np.array(x, dtype=float)
+    asarray = np.asarray
     t0 = time.process_time()
     for _ in range(n):
         x[0] += 1e-9
-        fun(0.0, x)
+        asarray(fun(0.0, x))
     return (time.process_time() - t0) / n
 
 
@@ -180,7 +185,7 @@ def per_call(rounds=7, n=1000):
         for _ in range(rounds):                            # interleaved: A B A B ...
             times["generated"].append(_cpu_per_call(model.rhs, x, n))
             times["hand"].append(_cpu_per_call(rhs, y, n))
-        its = model.stats["newton_iterations"] / model.stats["newton_solves"]
+        its = model.stats["newton_iterations"] / max(model.stats["newton_solves"], 1)   # 0: closures by formula
         rows.append((name, "Python (numpy backend)") + _summary(times) + (its,))
         rows.append((name, "numba (compiled loop)") + per_call_compiled(sc, accel))
     return rows
@@ -238,7 +243,7 @@ def per_call_compiled(sc, hand, n=200_000, rounds=7):
             t0 = time.process_time()
             fn()
             times[k].append((time.process_time() - t0) / n)
-    return _summary(times) + (w[0] / w[1],)      # w[0], w[1]: Newton iterations, solves (numba_kernels.W_HEAD)
+    return _summary(times) + (w[0] / max(w[1], 1.0),)   # w[0], w[1]: Newton iterations, solves (numba_kernels.W_HEAD)
 
 
 def equal_error():
@@ -356,6 +361,7 @@ def main():
                         "fresh processes (e.g. diagrams/linkages/eight_link.yaml)")
     parser.add_argument("--repeats", type=int, default=7, help="processes per tree with --fresh (default 7)")
     parser.add_argument("--before", metavar="DIR", help="with --fresh: also time the checkout at DIR, interleaved")
+    parser.add_argument("--per-call-only", action="store_true", help="only the cost per right-hand-side call")
     args = parser.parse_args()
     if args.fresh:
         print_fresh_processes(args.fresh, args.repeats, args.before)
@@ -367,6 +373,8 @@ def main():
     print("| --- | --- | --- | --- | --- | --- |")
     for name, lang, gen, hand, ratio, (lo, hi), its in per_call():
         print(f"| {name} | {lang} | {gen * 1e6:.3g} | {hand * 1e6:.3g} | {ratio:.2f} [{lo:.2f}-{hi:.2f}] | {its:.2f} |")
+    if args.per_call_only:
+        return
     print("\n## whole runs (crank angle over 2 s, CPU time, interleaved, medians of 5 [lowest-highest])")
     print("| rtol | hand + solve_ivp DOP853: error | CPU [ms] | numba backend (warm call): error | CPU [ms] |")
     print("| --- | --- | --- | --- | --- |")

@@ -72,9 +72,8 @@ def hand_accel(th, w):
     across = math.sqrt(L1 * L1 - along * along)
     ux, uy = dx / d, dy / d
     px, py = ax + along * ux - across * uy, ay + along * uy + across * ux
-    p1 = math.atan2(py - ay, px - ax)
-    p2 = math.atan2(py, px - BX)
-    c1, s1, c2, s2 = math.cos(p1), math.sin(p1), math.cos(p2), math.sin(p2)
+    # the links' directions as unit vectors (no atan2 and sine/cosine of the angle again)
+    c1, s1, c2, s2 = (px - ax) / L1, (py - ay) / L1, (px - BX) / L2, py / L2
     # velocity ratios k1 = dp1/dth, k2 = dp2/dth: L1 n1 k1 - L2 n2 k2 = -L n(th)
     det = L1 * L2 * (s1 * c2 - c1 * s2)
     rx, ry = L * s, -L * c                      # -L n(th)

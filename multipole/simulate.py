@@ -447,12 +447,12 @@ def output_grid(t_end: float, dt_out: float | None, n_columns: int = 1) -> np.nd
 
     ``dt_out`` defaults to ``t_end/500``.  A grid of more than :data:`MAX_OUTPUT_ROWS` rows is
     refused before it is allocated, with its size in memory for ``n_columns`` float columns."""
-    if not (isinstance(t_end, (int, float)) and np.isfinite(t_end) and t_end > 0):
+    if not (isinstance(t_end, (int, float)) and math.isfinite(t_end) and t_end > 0):
         raise MultipoleError("bad_time", f"t_end must be a positive finite time in s, got {t_end}",
                              "e.g. simulate: {t_end: 1.0}")
     if dt_out is None:
         dt_out = t_end / 500
-    if not (isinstance(dt_out, (int, float)) and np.isfinite(dt_out) and dt_out > 0):
+    if not (isinstance(dt_out, (int, float)) and math.isfinite(dt_out) and dt_out > 0):
         raise MultipoleError("bad_dt_out", f"dt_out must be a positive finite time in s, got {dt_out}",
                              f"e.g. dt_out: {t_end / 500:.3g} (500 rows)")
     rows = np.floor(t_end / dt_out) + 2
@@ -464,10 +464,14 @@ def output_grid(t_end: float, dt_out: float | None, n_columns: int = 1) -> np.nd
     n_out = int(round(t_end / dt_out))
     if abs(n_out * dt_out - t_end) > 1e-9 * t_end:
         n_out = int(np.floor(t_end / dt_out))
-    grid = np.arange(n_out + 1) * dt_out
-    if abs(grid[-1] - t_end) > 1e-9 * t_end:
-        grid = np.append(grid, t_end)
-    grid[-1] = min(grid[-1], t_end)
+    last = n_out * dt_out                  # the grid's last point, as np.arange(n_out + 1) * dt_out has it
+    if abs(last - t_end) > 1e-9 * t_end:
+        grid = np.empty(n_out + 2)
+        grid[:-1] = np.arange(n_out + 1) * dt_out
+        grid[-1] = t_end
+    else:
+        grid = np.arange(n_out + 1) * dt_out
+        grid[-1] = min(last, t_end)
     return grid
 
 
@@ -533,11 +537,12 @@ def simulate(model, t_end: float, dt_out: float | None = None, solver: str = "au
     if solver != "auto" and solver not in integrator.solvers:
         raise MultipoleError("unknown_solver", f"unknown solver {solver!r}",
                              f"use auto or one of {', '.join(integrator.solvers)}")
-    plans = model.__dict__.setdefault("_plans", {})      # per model: the stiffness estimate and the choice
+    plans = model.__dict__.setdefault("_plans", {})      # per model: the stiffness estimate, the choice, the steps
     key = (integrator.name, solver, t_end, rtol)
     if key not in plans:
-        plans[key] = _stiffness_or_none(model, t_end, rtol), None
-    estimate = expected_steps(model, solver, t_end, plans[key][0]) if plans[key][0] else None
+        stiff = _stiffness_or_none(model, t_end, rtol)
+        plans[key] = stiff, None, expected_steps(model, solver, t_end, stiff) if stiff else None
+    estimate = plans[key][2]
     if estimate is not None and estimate[0] > MANY_STEPS:
         warnings.warn(f"{model.name}: the stiffness estimate says this run takes about {estimate[0]:.2g} steps "
                       f"({estimate[1]}); it may run for hours (shorten t_end, or soften the stiffest coupling)",
@@ -584,16 +589,16 @@ def _drive(model, integrator, t_end, t_grid, solver, rtol, atol, max_step, bar, 
     """What every backend shares around its integrator (see :func:`simulate`)."""
     start = time.perf_counter()
     x = np.array(model.x0 if x0 is None else x0, dtype=float)
-    if not np.all(np.isfinite(x)):
+    if not np.isfinite(x).all():
         bad = [model.state_names[k] for k in np.nonzero(~np.isfinite(x))[0]]
         raise SimulationError("not_finite", f"the initial state is infinite or NaN: {', '.join(bad[:5])}",
                               "check the initial values and the parameters they are computed from")
     key = (integrator.name, solver, t_end, rtol)
-    stiff, plan = model._plans[key]
+    stiff, plan, estimate = model._plans[key]
     if plan is None:                       # the choice, once per model and run setting
         auto = choose_solver(model, t_end, rtol, stiff) if solver == "auto" else None
         plan = integrator.method(solver, auto)
-        model._plans[key] = stiff, plan
+        model._plans[key] = stiff, plan, estimate
     method, reason = plan
     schedule, sides = _time_switches(model, x, t_end)
     run = integrator.integrate(model, method, t_grid, x, schedule, sides, t_end, rtol, atol, max_step, bar)
@@ -941,9 +946,9 @@ def check_finite(t_grid, states, outs, state_names, output_names, model=None) ->
     variable and element responsible (both backends; with the compiled ``model``, an output is
     traced to the first non-finite variable of the evaluation order)."""
     for what, data, names in (("state", states, state_names), ("output", outs, output_names)):
-        bad = ~np.isfinite(data)
-        if bad.any():
-            row, col = np.argwhere(bad)[0]
+        finite = np.isfinite(data)
+        if not finite.all():
+            row, col = np.argwhere(~finite)[0]
             var = names[col]
             cause, element = locate_non_finite(model, t_grid[row], states[row]) \
                 if what == "output" and model is not None else ("", None)

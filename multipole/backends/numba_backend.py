@@ -697,18 +697,19 @@ def load(source: str):
 
 
 class _Work:
-    """Every array the compiled loop keeps between steps (see :mod:`numba_kernels`)."""
+    """Every array the compiled loop keeps between steps (see :mod:`numba_kernels`).
+
+    The backend keeps one per model between runs (:meth:`start` readies it for the next): the
+    loop's scratch arrays (``f``, ``Q``, ``y_old``, ``J``, the LU factors, the event lists) are
+    written before they are read in every run, so only the counters, options, states and the
+    model's work array are reset, and ``X`` (the states on the grid, which the run's result keeps)
+    is new each run."""
 
     def __init__(self, n: int, n_switches: int, n_work: int, grid: np.ndarray, x0, t_end, rtol, atol, max_step):
         self.fs = np.zeros(K.N_FS)
-        self.fs[[K.F_T, K.F_T_END, K.F_RTOL, K.F_ATOL, K.F_MAX_STEP]] = 0.0, t_end, rtol, atol, max_step
         self.iw = np.zeros(K.N_IW, dtype=np.int64)
-        self.iw[K.I_FRESH] = 1
-        self.iw[K.I_FORCED] = -1
-        self.x = np.array(x0, dtype=float)
+        self.x = np.zeros(n)
         self.f = np.zeros(n)
-        self.grid = grid
-        self.X = np.zeros((grid.size, n))
         self.g_sign = np.zeros(n_switches)
         self.ev_t = np.zeros(MAX_EVENTS + 1)
         self.ev_k = np.zeros(MAX_EVENTS + 1, dtype=np.int64)
@@ -726,6 +727,22 @@ class _Work:
         self.sched_side = np.zeros(0)
         self.t_side = np.ones(n_switches)
         self.stop = np.zeros(n_switches, dtype=np.int64)          # 1: a stop monitor (see :meth:`monitors`)
+        self.crossings = None                                     # what the sched_ arrays hold
+        self.start(grid, x0, t_end, rtol, atol, max_step)
+
+    def start(self, grid: np.ndarray, x0, t_end, rtol, atol, max_step) -> None:
+        """Ready for a run from ``x0`` at t = 0 over ``grid`` [s], as a new :class:`_Work` would be."""
+        fs, iw = self.fs, self.iw
+        fs.fill(0.0)
+        fs[K.F_T_END], fs[K.F_RTOL], fs[K.F_ATOL], fs[K.F_MAX_STEP] = t_end, rtol, atol, max_step
+        iw.fill(0)
+        iw[K.I_FRESH] = 1
+        iw[K.I_FORCED] = -1
+        self.x[:] = x0
+        self.g_sign.fill(0.0)
+        self.w.fill(0.0)
+        self.grid = grid
+        self.X = np.zeros((grid.size, self.x.size))
 
     def monitors(self, monitors) -> None:
         """Mark the switching functions of the monitors with ``stop`` (the model's ``monitors``): the
@@ -735,12 +752,15 @@ class _Work:
 
     def schedule(self, time_only, crossings, sides) -> None:
         """The crossings ``[(t, k, side after), ...]`` of the switching functions of time alone and
-        their ``sides`` at t = 0 (:func:`multipole.simulate.time_switch_schedule`)."""
-        self.time_only = np.asarray(time_only, dtype=np.int64)
-        self.sched_t = np.array([c[0] for c in crossings], dtype=float)
-        self.sched_k = np.array([c[1] for c in crossings], dtype=np.int64)
-        self.sched_side = np.array([c[2] for c in crossings], dtype=float)
-        self.t_side = np.array(sides, dtype=float)
+        their ``sides`` at t = 0 (:func:`multipole.simulate.time_switch_schedule`); the arrays are
+        made again only for other crossings than the last run's."""
+        if self.crossings is None or crossings != self.crossings:
+            self.time_only = np.asarray(time_only, dtype=np.int64)
+            self.sched_t = np.array([c[0] for c in crossings], dtype=float)
+            self.sched_k = np.array([c[1] for c in crossings], dtype=np.int64)
+            self.sched_side = np.array([c[2] for c in crossings], dtype=float)
+            self.crossings = crossings
+        self.t_side[:] = sides
 
     def args(self, max_steps):
         return (self.fs, self.iw, self.x, self.f, self.grid, self.X, self.g_sign, self.ev_t, self.ev_k, self.Q,
@@ -811,6 +831,10 @@ class NumbaModel:
         return Y
 
 
+#: the smallest relative tolerance the compiled loops run with
+_MIN_RTOL = 100 * np.finfo(float).eps
+#: the steps of one call of the compiled loop without a progress bar (all of them)
+_NO_CHUNK = np.iinfo(np.int64).max
 _STATUS = {K.STEP_TOO_SMALL: "the step size fell below the resolution of t",
            K.NOT_FINITE: "the solution became infinite or NaN"}
 
@@ -833,12 +857,16 @@ class NumbaIntegrator:
 
     def integrate(self, model, method, t_grid, x0, schedule, sides, t_end, rtol, atol, max_step, bar) -> Run:
         module, n = model.module, len(x0)
-        rtol = max(rtol, 100 * np.finfo(float).eps)
-        work = _Work(n, model.n_switches, module.N_WORK, t_grid, x0, t_end, rtol, atol, max_step)
+        rtol = max(rtol, _MIN_RTOL)
+        work = model.__dict__.pop("_work", None)     # the last run's arrays; a concurrent run makes its own
+        if work is None:
+            work = _Work(n, model.n_switches, module.N_WORK, t_grid, x0, t_end, rtol, atol, max_step)
+            work.monitors(model.monitors)
+        else:
+            work.start(t_grid, x0, t_end, rtol, atol, max_step)
         work.schedule(model.switch_time_only, schedule, sides)
-        work.monitors(model.monitors)
         funcs = _cfuncs(module) + (method == "Radau",)
-        chunk = PROGRESS_CHUNK if bar.enabled else np.iinfo(np.int64).max
+        chunk = PROGRESS_CHUNK if bar.enabled else _NO_CHUNK
         if n:
             try:
                 while work.iw[K.I_STATUS] == K.RUNNING:
@@ -866,6 +894,7 @@ class NumbaIntegrator:
                     "newton_iterations": int(work.w[0]), "newton_solves": int(work.w[1]),
                     "newton_failures": int(work.w[2]), "collocation_iterations": int(iw[K.I_NEWTON_IT])}
         events = [(float(work.ev_t[i]), int(work.ev_k[i])) for i in range(int(iw[K.I_NEV]))]
+        model._work = work
         return Run(work.X, events, counters)
 
 

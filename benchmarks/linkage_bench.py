@@ -11,8 +11,10 @@ tests/test_linkage_dynamics.py and a torque-driven slider-crank.
    run at rtol 1e-9; one solved by formula does not iterate), CPU time, the two timed interleaved, medians of 7 rounds; in Python each
    result converted by ``np.asarray`` as scipy's ``solve_ivp`` converts it (``--per-call-only``).
 2. Whole runs at equal error: `multipole` with the numba backend against the hand-written model
-   under scipy's solve_ivp (DOP853), each over a ladder of tolerances; error = max |crank angle -
-   reference| over the output grid (reference: the hand model at rtol 1e-13).
+   under scipy's solve_ivp (RK45, DOP853 and LSODA; at each error the fastest), each over a ladder
+   of tolerances; error = max |crank angle - reference| over the output grid (reference: the hand
+   model at rtol 1e-13); timed twice: one run of each contender per round (each right after the
+   others') and 3 runs in a row per round, the last timed (``--equal-error-only``: only this).
 3. check + model build (CPU time, an empty cache) of the scenes in diagrams/linkages/.
 
     python benchmarks/linkage_bench.py
@@ -245,50 +247,99 @@ def per_call_compiled(sc, hand, n=200_000, rounds=7):
     return _summary(times) + (w[0] / max(w[1], 1.0),)   # w[0], w[1]: Newton iterations, solves (numba_kernels.W_HEAD)
 
 
-def equal_error():
+#: the hand model's scipy methods (the comparison takes the fastest at each error) and the ladder of
+#: relative tolerances every contender runs (atol = rtol/100)
+HAND_METHODS = ("RK45", "DOP853", "LSODA")
+LADDER = (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
+
+
+def equal_error(repeat=1, rounds=5, rtols=LADDER, methods=HAND_METHODS):
+    """``{contender: [(rtol, error, CPU median [s], (lowest, highest))]}``: the hand model under
+    ``solve_ivp`` with each of ``methods`` (contender ``hand METHOD``) and the numba backend
+    (``numba``: a warm ``pipeline.run``, equations and compiled model remembered), each over the
+    ladder ``rtols``; error = max |crank angle - reference| on the 201-point output grid (reference:
+    the hand model, DOP853 at rtol 1e-13).  Per rung ``rounds`` rounds, each running the
+    contenders in turn (interleaved); in a round a contender runs ``repeat`` times in a row and the
+    last run's CPU time counts: ``repeat=1`` is one run right after the other contenders' runs
+    (scipy's code and data in the caches: a run after other Python work), ``repeat=3`` a user
+    calling the same run again and again (as ``timeit`` does)."""
+    import functools
     import multipole as mp
     from multipole import pipeline
     t_eval = np.linspace(0, T_END, 201)
     ref = solve_ivp(hand_rhs, (0, T_END), [PHI0, 0.0], method="DOP853", rtol=1e-13, atol=1e-13,
                     t_eval=t_eval).y[0]
     sc = mp.loads(SCENE, "fourbar.yaml")
-    out = []
-    for rtol in (1e-5, 1e-7, 1e-9, 1e-11):
-        samples = {"hand": [], "numba": []}
+
+    def hand(method, rtol):
+        return solve_ivp(hand_rhs, (0, T_END), [PHI0, 0.0], method=method, rtol=rtol, atol=rtol * 1e-2,
+                         t_eval=t_eval).y[0]
+
+    def numba(rtol):
+        return pipeline.run(sc, rtol=rtol, atol=rtol * 1e-2, dt_out=0.01, backend="numba", progress=False)["crank.phi"]
+    runs = {f"hand {m}": functools.partial(hand, m) for m in methods}
+    runs["numba"] = numba
+    numba(rtols[0])                                    # compiled (or loaded from numba's cache) once, not timed
+    out = {who: [] for who in runs}
+    for rtol in rtols:
+        samples = {who: [] for who in runs}
         err = {}
-        for _ in range(5):                             # interleaved: hand, numba, hand, numba ...
-            for who in samples:
-                t0 = time.process_time()
-                if who == "hand":
-                    sol = solve_ivp(hand_rhs, (0, T_END), [PHI0, 0.0], method="DOP853", rtol=rtol, atol=rtol * 1e-2,
-                                    t_eval=t_eval)
-                    phi = sol.y[0]
-                else:                                  # a warm call: equations and compiled model remembered
-                    res = pipeline.run(sc, rtol=rtol, atol=rtol * 1e-2, dt_out=0.01, backend="numba", progress=False)
-                    phi = res["crank.phi"]
-                samples[who].append(time.process_time() - t0)
+        for _ in range(rounds):
+            for who, fn in runs.items():
+                for _ in range(repeat):
+                    t0 = time.process_time()
+                    phi = fn(rtol)
+                    cpu = time.process_time() - t0
+                samples[who].append(cpu)
                 err[who] = float(np.abs(phi - ref).max())
-        cpu = {who: float(np.median(v)) for who, v in samples.items()}
-        spread = {who: (float(np.min(v)), float(np.max(v))) for who, v in samples.items()}
-        out.append((rtol, err["hand"], cpu["hand"], err["numba"], cpu["numba"], spread))
+        for who, v in samples.items():
+            out[who].append((rtol, err[who], float(np.median(v)), (float(np.min(v)), float(np.max(v)))))
     return out
 
 
-def at_equal_error(ladder, targets=(1e-6, 1e-8, 1e-9)):
-    """``[(error, hand CPU, numba CPU)]``: each contender's CPU time at the same error, interpolated
-    linearly in log(error)-log(CPU) between the rungs of its ladder (targets outside a ladder's
-    range are left out)."""
+def _cpu_at(ladder, target, cpu=lambda rung: rung[2]):
+    """CPU time [s] at error ``target`` interpolated linearly in log(error)-log(CPU) between the
+    rungs of ``ladder`` (``cpu(rung)`` of each); None outside the ladder's errors."""
+    pts = sorted((math.log(rung[1]), math.log(cpu(rung))) for rung in ladder)
+    xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+    lt = math.log(target)
+    return math.exp(float(np.interp(lt, xs, ys))) if xs[0] <= lt <= xs[-1] else None
+
+
+def at_equal_error(ladders, targets=(1e-6, 1e-8, 1e-9)):
+    """``[(error, fastest hand method, its CPU, numba CPU, numba CPU of its slowest rounds)]`` [s]:
+    each contender's CPU time at the same error (:func:`_cpu_at`), the hand model's with the method
+    fastest there; a target outside numba's ladder or every hand method's is left out."""
     rows = []
     for target in targets:
-        cpu = []
-        for err_at, cpu_at in ((1, 2), (3, 4)):
-            pts = sorted((math.log(r[err_at]), math.log(r[cpu_at])) for r in ladder)
-            xs, ys = [p[0] for p in pts], [p[1] for p in pts]
-            lt = math.log(target)
-            cpu.append(math.exp(float(np.interp(lt, xs, ys))) if xs[0] <= lt <= xs[-1] else None)
-        if None not in cpu:
-            rows.append((target, cpu[0], cpu[1]))
+        hand = {who.split(" ", 1)[1]: _cpu_at(ladder, target) for who, ladder in ladders.items() if who != "numba"}
+        hand = {m: c for m, c in hand.items() if c is not None}
+        numba = _cpu_at(ladders["numba"], target)
+        if hand and numba is not None:
+            best = min(hand, key=hand.get)
+            rows.append((target, best, hand[best], numba, _cpu_at(ladders["numba"], target, lambda r: r[3][1])))
     return rows
+
+
+def print_equal_error(rounds=5):
+    """The whole-run tables of :func:`equal_error`, single interleaved runs and 3 runs in a row."""
+    for repeat, what in ((1, "one run per round, each right after the other contenders' runs"),
+                         (3, "3 runs in a row per round, the last timed")):
+        ladders = equal_error(repeat, rounds)
+        print(f"\n## whole runs, {what} (crank angle over 2 s, CPU time, contenders interleaved, medians of "
+              f"{rounds} [lowest-highest])")
+        print("| rtol | " + " | ".join(f"{who}: error, CPU [ms]" for who in ladders) + " |")
+        print("| --- |" + " --- |" * len(ladders))
+        for i, rtol in enumerate(ladders["numba"]):
+            cells = [f"{r[1]:.1e}, {r[2] * 1e3:.3g} [{r[3][0] * 1e3:.3g}-{r[3][1] * 1e3:.3g}]"
+                     for r in (ladder[i] for ladder in ladders.values())]
+            print(f"| {rtol[0]:.0e} | " + " | ".join(cells) + " |")
+        print(f"\n### at equal error ({what}; CPU interpolated log-log along each ladder)")
+        print("| error | fastest hand method | hand [ms] | numba [ms] | hand / numba | with numba's slowest rounds |")
+        print("| --- | --- | --- | --- | --- | --- |")
+        for target, method, hand, numba, slowest in at_equal_error(ladders):
+            print(f"| {target:.0e} | {method} | {hand * 1e3:.3g} | {numba * 1e3:.3g} | {hand / numba:.0f} | "
+                  f"{hand / slowest:.0f} |")
 
 
 def check_compile():
@@ -361,9 +412,13 @@ def main():
     parser.add_argument("--repeats", type=int, default=7, help="processes per tree with --fresh (default 7)")
     parser.add_argument("--before", metavar="DIR", help="with --fresh: also time the checkout at DIR, interleaved")
     parser.add_argument("--per-call-only", action="store_true", help="only the cost per right-hand-side call")
+    parser.add_argument("--equal-error-only", action="store_true", help="only the whole runs at equal error (~15 s)")
     args = parser.parse_args()
     if args.fresh:
         print_fresh_processes(args.fresh, args.repeats, args.before)
+        return
+    if args.equal_error_only:
+        print_equal_error()
         return
     print("## cost per right-hand-side call (torque-driven four-bar and slider-crank, CPU time, interleaved, "
           "medians of 7)")
@@ -374,18 +429,7 @@ def main():
         print(f"| {name} | {lang} | {gen * 1e6:.3g} | {hand * 1e6:.3g} | {ratio:.2f} [{lo:.2f}-{hi:.2f}] | {its:.2f} |")
     if args.per_call_only:
         return
-    print("\n## whole runs (crank angle over 2 s, CPU time, interleaved, medians of 5 [lowest-highest])")
-    print("| rtol | hand + solve_ivp DOP853: error | CPU [ms] | numba backend (warm call): error | CPU [ms] |")
-    print("| --- | --- | --- | --- | --- |")
-    ladder = equal_error()
-    for rtol, eh, ch, en, cn, sp in ladder:
-        print(f"| {rtol:.0e} | {eh:.1e} | {ch * 1e3:.1f} [{sp['hand'][0] * 1e3:.1f}-{sp['hand'][1] * 1e3:.1f}] | "
-              f"{en:.1e} | {cn * 1e3:.2f} [{sp['numba'][0] * 1e3:.2f}-{sp['numba'][1] * 1e3:.2f}] |")
-    print("\n## at equal error (CPU interpolated log-log along each ladder)")
-    print("| error | hand + solve_ivp [ms] | numba backend [ms] | hand / numba |")
-    print("| --- | --- | --- | --- |")
-    for target, hand, numba in at_equal_error(ladder):
-        print(f"| {target:.0e} | {hand * 1e3:.1f} | {numba * 1e3:.2f} | {hand / numba:.0f} |")
+    print_equal_error()
     print("\n## check and model build (numpy backend's code), new cache, CPU time")
     print("| scene | check [s] | compile [s] |")
     print("| --- | --- | --- |")

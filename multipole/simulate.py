@@ -915,8 +915,10 @@ def monitor_findings(model, events, x0, t_end) -> list:
     directions from its side at the start (as the integrators hold it: its sign, or where it is 0, the
     sign just after).  A stop monitor that fired (the integrators end the run there) raises its
     :class:`SimulationError` with the monitor's code, the time and the element."""
+    if not events:
+        return []
     monitors = {k: rest for k, *rest in getattr(model, "monitors", [])}
-    if not monitors or not events:
+    if not monitors:
         return []
     sides = _sides(model, 0.0, x0, np.sign(np.array(model.switches(0.0, x0), dtype=float)), t_end)
     found = []

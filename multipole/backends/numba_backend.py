@@ -826,7 +826,8 @@ class NumbaModel:
     def outputs_on_grid(self, t_grid, states):
         """The outputs on the grid, compiled; after a run they read its work array (loop guesses)."""
         Y = np.zeros((len(t_grid), len(self.output_names)))
-        K.sample(self.module.outputs.address, getattr(self, "w_run", np.zeros(self.module.N_WORK)), t_grid,
+        w = self.__dict__.get("w_run")
+        K.sample(self.module.outputs.address, np.zeros(self.module.N_WORK) if w is None else w, t_grid,
                  np.ascontiguousarray(states), Y)
         return Y
 

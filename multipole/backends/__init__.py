@@ -88,6 +88,10 @@ class Integrator(Protocol):
 
     name: str               # stats["backend"]
     solvers: tuple          # the solver names it accepts (besides auto)
+    #: optional, default False: ``integrate`` evaluates the model in compiled code only and raises
+    #: no Python warning, so the driver enters no warnings context for a run whose method and
+    #: time-switch schedule it has already worked out (nothing else in such a run can warn)
+    compiled: bool
 
     def method(self, solver: str, auto: tuple | None) -> tuple[str, str]:
         """``(method that runs, reason)`` for ``solver``; ``auto`` is ``(method, reason)`` from

@@ -845,6 +845,7 @@ class NumbaIntegrator:
 
     name = "numba"
     solvers = tuple(METHODS)
+    compiled = True          # the model runs in compiled code only: no Python warnings (see Integrator)
 
     def method(self, solver, auto) -> tuple[str, str]:
         """This backend's method for the requested ``solver`` and the reason, for ``solver_reason``."""

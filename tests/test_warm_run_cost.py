@@ -108,3 +108,31 @@ def test_a_result_does_not_change_when_the_model_runs_again():
     second = run(model, t_end / 2, dt_out / 2, "Radau", 1e-6, 1e-9)
     assert not np.shares_memory(first.states, second.states)
     assert fingerprint(first) == kept
+
+
+@pytest.mark.parametrize("backend", ["numba", "numpy"])
+def test_a_warm_compiled_run_enters_no_warnings_context(backend, monkeypatch):
+    """The driver collects the run's Python warnings (``stats["warnings"]``) inside a warnings
+    context; a run of the compiled integrator whose method and time-switch schedule are already
+    known has no Python code that could warn and skips it (counted: contexts entered per run).  The
+    first run (the method chosen and the time switches' crossings found by evaluating the model in
+    Python) and every numpy run enter it."""
+    import warnings
+    sim = sys.modules["multipole.simulate"]
+    entered = []
+
+    class Counting(warnings.catch_warnings):
+        def __enter__(self):
+            entered.append(1)
+            return super().__enter__()
+    sc = loads(SQUARE_WAVE.replace("square_wave", "square_wave_warnings"), "scene.yaml")
+    eq, outs, _ = pipeline.pruned(sc)                # derived and compiled before counting
+    numba_backend.run.compile(eq, outs) if backend == "numba" else pipeline.model(sc)
+    monkeypatch.setattr(sim.warnings, "catch_warnings", Counting)
+    counts = []
+    for _ in range(3):
+        entered.clear()
+        res = pipeline.run(sc, backend=backend, progress=False)
+        counts.append(len(entered))
+    assert res.stats["backend"] == backend
+    assert counts == ([1, 0, 0] if backend == "numba" else [1, 1, 1])

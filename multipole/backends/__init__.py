@@ -32,6 +32,7 @@ import warnings
 from typing import Callable, Protocol
 
 from ..errors import MultipoleError, MultipoleWarning
+from ..simulate import simulate
 
 #: the entry-point group backends register in
 GROUP = "multipole.backends"
@@ -142,7 +143,6 @@ class Backend:
     def run_model(self, model, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9, max_step=float("inf"),
                   progress=None):
         """Simulate a compiled ``model`` from 0 to ``t_end`` [s] with the shared driver."""
-        from ..simulate import simulate
         return simulate(model, t_end, dt_out, solver, rtol, atol, max_step, progress, integrator=self.integrator)
 
     def __call__(self, equations, outputs, t_end, dt_out=None, solver="auto", rtol=1e-6, atol=1e-9,

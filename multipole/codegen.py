@@ -948,7 +948,13 @@ class _Writer:
             return lines + pivots
         cramer = self.cramer_lines(nz, names, tag)
         wanted = [v for v in names if v in self._rhs_reads()] or names
-        return lines + (cramer if _operations(cramer, wanted) < _operations(pivots, wanted) else pivots)
+        if _operations(cramer, wanted) >= _operations(pivots, wanted):
+            return lines + pivots
+        # Cramer's rule only reads the entries: one that is a name (a shared temporary, a variable) is
+        # read as that name, not copied
+        copies = dict(m.groups() for m in map(_COPY.fullmatch, lines) if m)
+        return [line for line in lines if not _COPY.fullmatch(line)] + \
+            [_ENTRY.sub(lambda m: copies.get(m.group(0), m.group(0)), line) for line in cramer]
 
     def pivot_lines(self, nz, names: list) -> list:
         """``names = A⁻¹ b`` over the entries ``_ai_j`` (nonzero columns ``nz[i]`` of row ``i``, updated
@@ -1314,6 +1320,8 @@ def _operations(lines: list, wanted: list) -> int:
 
 
 _OPERATION = re.compile(r"[-+*/]|\babs\(|\bif\b")
+_ENTRY = re.compile(r"\b_[ar]\d+(?:_\d+)?\b")                  # a loop's entry, _ai_j or _ri
+_COPY = re.compile(r"    (_[ar]\d+(?:_\d+)?) = ([A-Za-z_]\w*)")   # an entry that is a name
 
 
 def _signed_sum(terms) -> str:

@@ -84,10 +84,15 @@ def _worst(result_fmu, result, outputs) -> float:
 
 def _numeric_loops(monkeypatch):
     """Every linear loop left after elimination solved numerically in the generated code (not as a
-    formula): the path of large loops, taken here by small ones."""
+    formula): the path of large loops, taken here by small ones.  The models built so are kept out
+    of the process's memos and the disk cache (their keys do not know the limits): a later test of
+    the same scene must not get them."""
     import multipole.equations
     monkeypatch.setattr(multipole.equations, "SYMBOLIC_LIMIT", 0)
     monkeypatch.setattr(multipole.equations, "CORE_SYMBOLIC_LIMIT", 0)     # and no core of a split loop either
+    for memo in ("_MODELS", "_PRUNED", "_CHECKED", "_RESTORED"):
+        monkeypatch.setattr(pipeline, memo, {})
+    monkeypatch.setenv("MULTIPOLE_CACHE", "off")
 
 
 def _has_numeric_loop(sc) -> bool:

@@ -8,8 +8,9 @@ tests/test_linkage_dynamics.py and a torque-driven slider-crank.
    inertia and its velocity terms by virtual power), in Python floats (no numpy scalar or array).
    Each call at a new state (the crank angle moved by 1e-9 rad, at most 1e-6 from the start: a
    closure solved by Newton's method then starts 1e-9 to 1e-6 off and takes 2 iterations, as in a
-   run at rtol 1e-9; one solved by formula does not iterate), CPU time, the two timed interleaved, medians of 7 rounds; in Python each
-   result converted by ``np.asarray`` as scipy's ``solve_ivp`` converts it (``--per-call-only``).
+   run at rtol 1e-9; one solved by formula does not iterate), CPU time, the two timed interleaved,
+   medians of 7 rounds; in Python each result converted by ``np.asarray`` as scipy's ``solve_ivp``
+   converts it (``--per-call-only``: only this part).
 2. Whole runs at equal error: `multipole` with the numba backend against the hand-written model
    under scipy's solve_ivp (RK45, DOP853 and LSODA; at each error the fastest), each over a ladder
    of tolerances; error = max |crank angle - reference| over the output grid (reference: the hand

@@ -821,15 +821,7 @@ class _Writer:
             return roots[arg]
         exprs = [e.replace(lambda x: x.is_Pow and x.exp == sp.S.Half, lambda x: root(x.base)) for e in exprs]
         radicands = list(roots)
-        # a sine or cosine of a named value stays a call (shared_trig names it), not a temporary of its own
-        calls = set().union(*(e.atoms(sp.sin, sp.cos) for e in radicands + exprs))
-        trig = {f: sp.Symbol(f"{prefix}{f.func.__name__}{i}") for i, f in enumerate(sorted(calls, key=sp.default_sort_key))
-                if f.args[0].is_Symbol}
-        back = {s: f for f, s in trig.items()}
-        temps, reduced = sp.cse([e.xreplace(trig) for e in radicands + exprs], symbols=sp.numbered_symbols(f"{prefix}c"),
-                                optimizations=None)
-        temps = [(s, e.xreplace(back)) for s, e in temps]
-        reduced = [e.xreplace(back) for e in reduced]
+        temps, reduced = cse_keeping_trig(radicands + exprs, f"{prefix}c")
         items = list(temps)
         for i, (arg, sym) in enumerate(roots.items()):
             rad = sp.Symbol(f"{prefix}r{i}")
@@ -1074,16 +1066,12 @@ class _Writer:
         matrix is symmetric; ``tag`` names the loop), and ``a·sin²u + b·cos²u`` folded to ``b + (a - b)·sin²u``
         (:func:`_pythagoras`).  Sines and cosines of a named value stay calls for :meth:`shared_trig`."""
         P = self.P
-        exprs = [_pythagoras(self.fold(e)) for _name, e in entries]
-        calls = set().union(*(e.atoms(sp.sin, sp.cos) for e in exprs))
-        trig = {f: sp.Symbol(f"{f}#") for f in calls if f.args[0].is_Symbol}   # not temporaries of their own
-        back = {d: f for f, d in trig.items()}
-        temps, reduced = sp.cse([e.xreplace(trig) for e in exprs], symbols=sp.numbered_symbols(f"_e{tag}_"))
+        temps, reduced = cse_keeping_trig([_pythagoras(self.fold(e)) for _name, e in entries], f"_e{tag}_")
         lines = []
         for sym, sub in temps:
             self.names[sym] = str(sym)
-            lines.append(f"    {sym} = {P(sub.xreplace(back))}")
-        return lines + [f"    {name} = {P(e.xreplace(back))}" for (name, _e), e in zip(entries, reduced)]
+            lines.append(f"    {sym} = {P(sub)}")
+        return lines + [f"    {name} = {P(e)}" for (name, _e), e in zip(entries, reduced)]
 
     def matrix_lines(self, name: str, M, indent: str = "    ") -> list:
         """``name = M`` as code: a literal array up to :data:`DENSE_MAX_UNKNOWNS` rows, else zeros and
@@ -1310,6 +1298,19 @@ class _Writer:
                     acc.setdefault(j, []).append(name if d == 1 else f"-{name}" if d == -1
                                                  else f"({self.P(d)})*{name}")
         return {j: " + ".join(acc[j]) for j in sorted(acc)}
+
+
+def cse_keeping_trig(exprs, prefix: str):
+    """``sympy.cse`` of ``exprs`` with temporaries named ``prefix0, prefix1, ...``, ``(temps,
+    reduced)``, where a sine or cosine of a named value (a symbol) stays a call in the results
+    instead of becoming a temporary of its own: :meth:`Writer.shared_trig` names those calls once
+    per function, shared with the rest of it."""
+    calls = set().union(*(e.atoms(sp.sin, sp.cos) for e in exprs)) if exprs else set()
+    trig = {f: sp.Dummy() for f in sorted(calls, key=sp.default_sort_key) if f.args[0].is_Symbol}
+    back = {d: f for f, d in trig.items()}
+    temps, reduced = sp.cse([e.xreplace(trig) for e in exprs], symbols=sp.numbered_symbols(prefix),
+                            optimizations=None)
+    return [(s, e.xreplace(back)) for s, e in temps], [e.xreplace(back) for e in reduced]
 
 
 def _operations(lines: list, wanted: list) -> int:

@@ -25,6 +25,7 @@ from .domains import bundle
 from .errors import IllPosedError
 from .network import PositionProblem, closure_order, var
 from .primitives import T
+from .stages import substitute
 
 
 def listing(names) -> str:
@@ -558,8 +559,8 @@ def _start_value(flat, expr) -> complex | None:
     """``expr`` at t = 0 in the initial state (states by their initial values), or None."""
     initial = {s.symbol: s.initial for s in flat.states}
     try:
-        value = sp.sympify(sp.sympify(expr).xreplace(initial)).xreplace(initial)
-        value = sp.sympify(sp.sympify(value).xreplace(flat.param_values())).xreplace({T: 0})
+        value = substitute(sp.sympify(substitute(sp.sympify(expr), initial)), initial)
+        value = substitute(sp.sympify(substitute(sp.sympify(value), flat.param_values())), {T: 0})
         return complex(value.evalf())
     except (TypeError, ValueError, ArithmeticError):
         return None

@@ -30,7 +30,7 @@ from .diagnostics import Diagnostic
 from .errors import IllPosedError, ModelError
 from .network import map_closed_form, closure_order, var
 from .primitives import T
-from .stages import _subset, bulk, derivative, numeric_function
+from .stages import _subset, bulk, derivative, numeric_function, substitute
 
 #: linear loops up to this size are solved symbolically
 SYMBOLIC_LIMIT = 8
@@ -96,7 +96,8 @@ class Equations:
         cached = self.__dict__.get("_x0")
         if cached is None or cached[0] != key:       # a mechanism's start values nest the start formulas of
             vals = dict(self.params)                 # every module before it: worked out once per parameters
-            cached = self._x0 = (key, [float(sp.sympify(s.initial).xreplace(vals)) for s in self.states])
+            memo: dict = {}
+            cached = self._x0 = (key, [float(substitute(sp.sympify(s.initial), vals, memo)) for s in self.states])
         return list(cached[1])
 
     def output(self, name: str) -> sp.Expr:

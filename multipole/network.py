@@ -21,7 +21,7 @@ import sympy as sp
 from .domains import Domain, bundle
 from .errors import ModelError
 from .primitives import LAW_F, LAW_P, LAW_Q, T, Primitive, Relation, negative, plain_sum
-from .stages import bulk
+from .stages import bulk, free_symbols, substitute
 
 
 @lru_cache(maxsize=None)
@@ -424,7 +424,7 @@ class _Flattener:
         expr = sp.sympify(expr)
         mapping = dict(subs or {})
         by_name = {k.name: v for k, v in mapping.items()}
-        for s in expr.free_symbols:
+        for s in free_symbols(expr):
             if s in mapping or s == T:
                 continue
             if s.name in by_name:          # the same law variable without assumptions
@@ -452,7 +452,7 @@ class _Flattener:
                 self.flat.params[g] = self.resolve(owner.params[s.name], owner.parent or owner, where) \
                     if isinstance(owner.params[s.name], sp.Basic) else owner.params[s.name]
             mapping[s] = g
-        return expr.xreplace(mapping) if mapping else expr
+        return substitute(expr, mapping)
 
     # -- walking -------------------------------------------------------------------------------
     def port_path(self, net: Network, path: str, ref: str) -> str:
@@ -597,11 +597,16 @@ class _Flattener:
         node_of = {p: n for n in self.flat.nodes for p in n.ports}
         fl = self.flat
         states = {s.symbol for s in fl.states}
+        symbols_memo: dict = {}       # free_symbols of the shared subexpressions, worked out once
+
+        def symbols(e):
+            return free_symbols(e, symbols_memo)
+
         provider: dict = {}
         for pp, (expr, owner) in self.positions.items():
             fl.position_providers[pp] = owner
             fl.position_states.setdefault(owner, set()).update(
-                v for v in expr.free_symbols if v not in self.reads and v in states)
+                v for v in symbols(expr) if v not in self.reads and v in states)
             node = node_of[pp]
             if node.name in provider:        # two outputs joined: reported by the check, the first one kept
                 fl.position_problems.append(PositionProblem("position_overdetermined",
@@ -630,33 +635,36 @@ class _Flattener:
             if prov is None and len(node.ports) > 1:
                 fl.position_problems.append(PositionProblem("position_undetermined", [owner], [pp]))
             expr = default if prov is None else prov[1]
-            subs = {s: value(s, stack + (ph,)) for s in expr.free_symbols if s in self.reads}
-            resolved[ph] = expr.xreplace(subs) if subs else expr
+            subs = {s: value(s, stack + (ph,)) for s in symbols(expr) if s in self.reads}
+            resolved[ph] = substitute(expr, subs)
             return resolved[ph]
 
         for ph in self.reads:
             value(ph, ())
+        memo: dict = {}        # one walk of each subexpression the expressions below share
+
+        def put(e):
+            return substitute(sp.sympify(e), resolved, memo)
+
         for eq in fl.equations:
-            if eq.expr.free_symbols & resolved.keys():
-                eq.expr = eq.expr.xreplace(resolved)
-        fl.closures = [(st, [sp.sympify(r).xreplace(resolved) for r in res], owner) for st, res, owner in fl.closures]
-        fl.closed_forms = {k: map_closed_form(cf, lambda e: sp.sympify(e).xreplace(resolved))
-                           for k, cf in fl.closed_forms.items()}
-        fl.conditions = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.conditions]
-        fl.monitors = [(sp.sympify(e).xreplace(resolved), *rest) for e, *rest in fl.monitors]
-        fl.quantities = {k: (sp.sympify(e).xreplace(resolved), u, d) for k, (e, u, d) in fl.quantities.items()}
-        fl.sketches = [(o, sk, [tuple(sp.sympify(v).xreplace(resolved) for v in pt) for pt in pts])
-                       for o, sk, pts in fl.sketches]
+            if symbols(eq.expr) & resolved.keys():
+                eq.expr = put(eq.expr)
+        fl.closures = [(st, [put(r) for r in res], owner) for st, res, owner in fl.closures]
+        fl.closed_forms = {k: map_closed_form(cf, put) for k, cf in fl.closed_forms.items()}
+        fl.conditions = [(put(e), *rest) for e, *rest in fl.conditions]
+        fl.monitors = [(put(e), *rest) for e, *rest in fl.monitors]
+        fl.quantities = {k: (put(e), u, d) for k, (e, u, d) in fl.quantities.items()}
+        fl.sketches = [(o, sk, [tuple(put(v) for v in pt) for pt in pts]) for o, sk, pts in fl.sketches]
         for s in fl.states:
-            s.rhs = sp.sympify(s.rhs).xreplace(resolved)
-            s.initial = sp.sympify(s.initial).xreplace(resolved)
+            s.rhs = put(s.rhs)
+            s.initial = put(s.initial)
         # initial values that read other states' initial values (a dyad's start pose from its drive's):
         # substituted once each, in dependency order; a circle (only after a position loop, which the
         # check reports) is left unsubstituted, since repeated substitution around it grows without end
         by_symbol = {s.symbol: s for s in fl.states}
         reads = nx.DiGraph()
         reads.add_nodes_from(by_symbol)
-        reads.add_edges_from((d, s.symbol) for s in fl.states for d in s.initial.free_symbols & by_symbol.keys())
+        reads.add_edges_from((d, s.symbol) for s in fl.states for d in symbols(s.initial) & by_symbol.keys())
         if not nx.is_directed_acyclic_graph(reads):
             circle = [a for a, _b in nx.find_cycle(reads)]
             fl.position_problems.append(PositionProblem(
@@ -665,9 +673,9 @@ class _Flattener:
             return
         for sym in nx.topological_sort(reads):
             s = by_symbol[sym]
-            deps = s.initial.free_symbols & by_symbol.keys()
+            deps = symbols(s.initial) & by_symbol.keys()
             if deps:
-                s.initial = s.initial.xreplace({d: by_symbol[d].initial for d in deps})
+                s.initial = substitute(s.initial, {d: by_symbol[d].initial for d in deps})
 
 
 def map_closed_form(cf: ClosedForm, f, n: int | None = None, where: str = "") -> ClosedForm:

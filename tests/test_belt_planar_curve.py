@@ -97,8 +97,8 @@ MU_LEVER = 0.3
 
 @pytest.fixture(scope="module")
 def lever_model(tmp_path_factory):
-    """The lever scene's model, built once for the module: its build takes about 100 s (the check and
-    the start values substitute the curve spans' positions into each other by sympy's xreplace)."""
+    """The lever scene's model, built once for the module: its build takes about 40 s CPU (the curve
+    spans' positions nest into each other; most of it is now the generated Jacobian and printing)."""
     return _model(tmp_path_factory.mktemp("lever"), MU_LEVER)
 
 

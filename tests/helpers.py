@@ -47,3 +47,20 @@ def circle_intersection(theta, l=0.2, l1=0.6, l2=0.5, bx=0.7):
     across = math.sqrt(l1 * l1 - along * along)
     px, py = ax + along * dx / d - across * dy / d, ay + along * dy / d + across * dx / d
     return math.atan2(py - ay, px - ax), math.atan2(py, px - bx)
+
+
+#: the smallest model (a force on a mass): a code writer for tests of the printed solvers
+ONE_MASS = """
+name: one
+elements:
+  f: {type: force_source, value: 1.0}
+  m: {type: mass, m: 2.0}
+connections:
+  - [f.p, m.a]
+"""
+
+
+def one_mass_writer(cls=None):
+    """A code writer (``multipole.codegen.Writer`` or the subclass ``cls``) of :data:`ONE_MASS`."""
+    from multipole import codegen, pipeline
+    return (cls or codegen.Writer)(pipeline.equations(scene(ONE_MASS)))

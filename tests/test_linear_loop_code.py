@@ -15,19 +15,9 @@ import sympy as sp
 
 import multipole as mp
 from multipole import codegen, pipeline
-from tests.helpers import scene
+from tests.helpers import one_mass_writer
 
 ROOT = Path(__file__).resolve().parents[1]
-
-ONE_MASS = """
-name: one
-elements:
-  f: {type: force_source, value: 1.0}
-  m: {type: mass, m: 2.0}
-connections:
-  - [f.p, m.a]
-"""
-
 
 def _numeric_loops(eq):
     return [b for b in eq.blocks if b.kind == "linear" and b.solution is None]
@@ -73,8 +63,6 @@ def test_printed_loops_equal_the_dense_solve_at_random_states(name, n, method):
         assert [dx[k] for k, _i in ders] == [vals[i] for _k, i in ders]      # the same lines
 
 
-def _writer():
-    return codegen.Writer(pipeline.equations(scene(ONE_MASS)))
 
 
 def _run(lines, names, entries):
@@ -108,7 +96,7 @@ def test_cramer_lines_equal_the_dense_solve(seed):
     b = rng.normal(size=n)
     nz = {i: {j for j in range(n) if A[i, j] != 0} for i in range(n)}
     names = [f"z{i}" for i in range(n)]
-    got = _run(_writer().cramer_lines(nz, names, "t"), names, _entries(A, b))
+    got = _run(one_mass_writer().cramer_lines(nz, names, "t"), names, _entries(A, b))
     expected = np.linalg.solve(A, b)
     cond = np.linalg.cond(A)
     assert np.allclose(got, expected, rtol=0, atol=1e-13 * cond * np.abs(expected).max())
@@ -119,7 +107,7 @@ def test_cramer_lines_of_a_singular_matrix_raise_linalgerror():
     A = np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0], [0.0, 1.0, 3.0]])
     nz = {i: {j for j in range(3) if A[i, j] != 0} for i in range(3)}
     with pytest.raises(np.linalg.LinAlgError):
-        _run(_writer().cramer_lines(nz, ["z0", "z1", "z2"], "t"), ["z0", "z1", "z2"], _entries(A, np.ones(3)))
+        _run(one_mass_writer().cramer_lines(nz, ["z0", "z1", "z2"], "t"), ["z0", "z1", "z2"], _entries(A, np.ones(3)))
 
 
 @pytest.mark.parametrize("pattern, wanted, cramer", [(FOURBAR, 1, True), ([[1] * 5] * 5, 5, False)])
@@ -128,7 +116,7 @@ def test_the_cheaper_solution_is_printed(pattern, wanted, cramer):
     cofactors of 5 × 5 minors, most of them structural zeros); the elimination for a dense 5 × 5
     loop whose every unknown is read (Cramer's rule would need all 25 cofactors).  Either solves."""
     n = len(pattern)
-    w = _writer()
+    w = one_mass_writer()
     syms = {(i, j): sp.Symbol(f"s{i}_{j}") for i in range(n) for j in range(n) if pattern[i][j]}
     rsyms = [sp.Symbol(f"r{i}") for i in range(n)]
     for s in list(syms.values()) + rsyms:
@@ -168,7 +156,7 @@ def test_loop_entries_share_their_subexpressions():
     """Entries that repeat a product (the velocity terms of a mechanism's rows) compute it once: the
     printed lines hold it once, and evaluate to the entries' values."""
     a, b_, c, d = sp.symbols("a b c d")
-    w = _writer()
+    w = one_mass_writer()
     for s in (a, b_, c, d):
         w.names[s] = s.name
     shared = a * b_ * sp.cos(c) + 9.81

@@ -10,22 +10,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from multipole import codegen, pipeline
-from tests.helpers import circle_intersection, scene
+from multipole import codegen
+from tests.helpers import circle_intersection, one_mass_writer
 
-ONE_MASS = """
-name: one
-elements:
-  f: {type: force_source, value: 1.0}
-  m: {type: mass, m: 2.0}
-connections:
-  - [f.p, m.a]
-"""
-
-
-def _writer(cls=None):
-    eq = pipeline.equations(scene(ONE_MASS))
-    return (cls or codegen.Writer)(eq)
 
 
 def _solve_by_printed_code(writer, pattern, values, rhs):
@@ -60,7 +47,7 @@ def test_unrolled_elimination_equals_the_dense_solve(seed):
     A = rng.normal(size=(5, 5)) * np.array(FOURBAR)
     A[rng.integers(5)] *= 1e-6
     b = rng.normal(size=5)
-    got = _solve_by_printed_code(_writer(), FOURBAR, A, b)
+    got = _solve_by_printed_code(one_mass_writer(), FOURBAR, A, b)
     expected = np.linalg.solve(A, b)
     cond = np.linalg.cond(A)
     assert np.allclose(got, expected, rtol=1e-13 * cond, atol=1e-13 * cond * np.abs(expected).max())
@@ -72,7 +59,7 @@ def test_unrolled_elimination_pivots_where_the_diagonal_is_zero():
     pattern = [[1, 1, 1], [1, 1, 1], [1, 1, 1]]
     A = np.array([[0.0, 2.0, 1.0], [3.0, 0.0, 1.0], [1.0, 1.0, 0.0]])
     b = np.array([1.0, 2.0, 3.0])
-    got = _solve_by_printed_code(_writer(), pattern, A, b)
+    got = _solve_by_printed_code(one_mass_writer(), pattern, A, b)
     assert np.allclose(A @ got, b, rtol=0, atol=1e-14)
 
 
@@ -81,7 +68,7 @@ def test_unrolled_elimination_of_a_singular_matrix_raises_linalgerror():
     linear loop"), not a division by zero somewhere in the printed code."""
     pattern = [[1, 1], [1, 1]]
     with pytest.raises(np.linalg.LinAlgError):
-        _solve_by_printed_code(_writer(), pattern, np.array([[0.0, 1.0], [0.0, 2.0]]), np.ones(2))
+        _solve_by_printed_code(one_mass_writer(), pattern, np.array([[0.0, 1.0], [0.0, 2.0]]), np.ones(2))
 
 
 def test_gauss_kernel_equals_the_dense_solve_and_flags_a_singular_matrix():

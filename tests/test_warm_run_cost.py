@@ -26,22 +26,7 @@ from multipole.netlist import loads                                  # noqa: E40
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import linkage_bench                                                 # noqa: E402
-
-CONTACT = """
-name: contact
-parameters: {m: 0.5, k: 2.0e4, v0: 1.5, gap: 0.01}
-elements:
-  body:   {type: mass, m: m, v0: v0}
-  stop_j: {type: junction_a, ports: [a, b, c], signs: [1, -1, -1], domain: translational}
-  stop:   {type: C, law: "k*max(q, 0)", q0: "-gap", domain: translational}
-  wall:   {type: ground, domain: translational}
-connections:
-  - [body.b, stop_j.a]
-  - [stop_j.b, wall.p]
-  - [stop_j.c, stop.p]
-outputs: [body.v, stop.q]
-simulate: {t_end: 0.05, dt_out: 1.0e-4}
-"""
+from test_events import CONTACT            # noqa: E402  (a mass hitting a one-sided spring: events)
 
 SQUARE_WAVE = """
 name: square_wave
